@@ -1,0 +1,67 @@
+//! Output and input files: frames for viewers (VTKHDF), the frame series
+//! index, per-step statistics, and reading them back for `porosph inspect`.
+
+mod series;
+mod stats;
+mod vtkhdf;
+
+pub use series::SeriesWriter;
+pub use stats::StatsWriter;
+pub use vtkhdf::{inspect_frame, read_frame, write_frame};
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// One frame: every particle (fluid, solid and wall) as one point set.
+/// Owned, because frames are rare and built outside the step's hot path.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Frame {
+    /// Simulated time, s.
+    pub time: f64,
+    /// Step number.
+    pub step: u64,
+    /// Positions, m, one `[x, y, z]` per point.
+    pub points: Vec<[f32; 3]>,
+    /// Point arrays (`PointData/<name>` in the file), in the order written.
+    pub arrays: Vec<PointArray>,
+}
+
+/// A named per-point array; `data.len() == points * components`, point-major
+/// (the components of one point are adjacent), as VTKHDF stores them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointArray {
+    pub name: String,
+    /// Unit, written as the dataset attribute `unit` ("" if dimensionless).
+    pub unit: String,
+    pub components: usize,
+    pub data: ArrayData,
+}
+
+/// The element type of a [`PointArray`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum ArrayData {
+    F32(Vec<f32>),
+    U32(Vec<u32>),
+    U8(Vec<u8>),
+}
+
+/// A file problem, naming the file.
+#[derive(Debug)]
+pub struct IoError {
+    pub path: PathBuf,
+    pub reason: String,
+}
+
+impl IoError {
+    pub fn new(path: &Path, reason: impl fmt::Display) -> Self {
+        Self { path: path.to_path_buf(), reason: reason.to_string() }
+    }
+}
+
+impl fmt::Display for IoError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path.display(), self.reason)
+    }
+}
+
+impl std::error::Error for IoError {}
