@@ -1,1 +1,13 @@
-//! CPU compute kernels.
+//! CPU compute kernels of porosph: the SPH kernel, SIMD lanes, and one module
+//! per pass of the step (PHYSICS.md §6). Every pass is a gather over cache
+//! blocks ([`blocks::BLOCK`]) run under rayon, with neighbour loops in SIMD
+//! lanes ([`lanes::F`]); results do not depend on the number of threads.
+
+pub mod blocks;
+pub mod cubic_spline;
+pub mod grid;
+pub mod iisph;
+pub mod integrate;
+pub mod lanes;
+pub mod neighbors;
+pub mod viscosity;

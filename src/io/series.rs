@@ -11,7 +11,10 @@ pub struct SeriesWriter {
 impl SeriesWriter {
     /// A series index at `path` (not written until the first [`SeriesWriter::add`]).
     pub fn new(path: &Path) -> Self {
-        Self { path: path.to_path_buf(), entries: Vec::new() }
+        Self {
+            path: path.to_path_buf(),
+            entries: Vec::new(),
+        }
     }
 
     /// Adds a frame file name (relative to the series file) at simulated time `time`.

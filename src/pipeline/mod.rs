@@ -1,0 +1,118 @@
+//! One time step = the ordered list of passes of PHYSICS.md §6 (the paper's
+//! Algorithm 1), each timed by name. [`Simulation`] owns the particle store,
+//! the neighbour structures and the per-step arena.
+
+mod setup;
+mod step;
+pub mod timing;
+
+pub use step::StepError;
+pub use timing::{PassTimes, PASSES};
+
+use crate::scene::Scene;
+use crate::store::{FluidStore, Scratch, WallStore};
+use bumpalo::Bump;
+use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::grid::CellGrid;
+use porosph_kernels::neighbors::PairLists;
+
+/// Parameters derived from the scene, in SI units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Params {
+    /// Particle spacing h = d, m (PHYSICS.md §1).
+    pub h: f32,
+    /// Kernel support H = 2h, m.
+    pub kernel: CubicSpline,
+    /// Gravity, m/s^2.
+    pub gravity: [f32; 3],
+    /// Upper bound of dt, s.
+    pub max_dt: f32,
+    /// CFL number.
+    pub cfl: f32,
+    /// Target mean density error of the pressure solve (fraction).
+    pub max_density_error: f32,
+    pub min_iterations: u32,
+    pub max_iterations: u32,
+    /// Jacobi relaxation omega.
+    pub omega: f32,
+    /// Rest density rho_k of each phase, kg/m^3.
+    pub phase_density: Vec<f32>,
+    /// Viscosity mu_k of each phase, Pa s.
+    pub phase_viscosity: Vec<f32>,
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// The step's dt, s.
+    pub dt: f32,
+    /// Jacobi iterations of the pressure solve.
+    pub iterations: u32,
+    /// Mean predicted density error after the solve (fraction of rest density).
+    pub density_error: f32,
+    /// Largest fluid speed after the step, m/s.
+    pub max_speed: f32,
+    /// Milliseconds per pass.
+    pub times: PassTimes,
+}
+
+/// Neighbour structures and reused buffers (capacity persists across steps).
+#[derive(Default)]
+struct Workspace {
+    keys: Vec<u64>,
+    sort: Vec<(u64, u32)>,
+    perm: Vec<u32>,
+    reorder: Scratch,
+    fluid_grid: CellGrid,
+    wall_grid: CellGrid,
+    /// Fluid-fluid pairs (incl. self).
+    ff: PairLists,
+    /// Fluid-wall pairs.
+    fb: PairLists,
+    /// Active-wall-fluid pairs.
+    bf: PairLists,
+    /// Wall particles with at least one fluid particle in a neighbouring cell.
+    active: Vec<u32>,
+    active_cell: Vec<u8>,
+}
+
+/// A running simulation: state, time, and what it needs to step.
+pub struct Simulation {
+    pub scene: Scene,
+    pub params: Params,
+    pub fluid: FluidStore,
+    pub walls: WallStore,
+    /// Simulated time, s.
+    pub time: f64,
+    /// Steps taken.
+    pub step: u64,
+    /// dt of the next step, s.
+    pub dt: f32,
+    /// What the last step did.
+    pub last: StepStats,
+    work: Workspace,
+    arena: Bump,
+}
+
+impl Simulation {
+    /// Bytes of memory held per fluid particle: stores, neighbour lists,
+    /// grids and the step arena, divided by the number of fluid particles.
+    pub fn bytes_per_particle(&self) -> f64 {
+        let w = &self.work;
+        let bytes = self.fluid.bytes()
+            + self.walls.bytes()
+            + w.ff.bytes()
+            + w.fb.bytes()
+            + w.bf.bytes()
+            + 8 * w.keys.capacity()
+            + 16 * w.sort.capacity()
+            + 4 * w.perm.capacity()
+            + self.arena.allocated_bytes();
+        bytes as f64 / self.fluid.len().max(1) as f64
+    }
+
+    /// Number of fluid-fluid and fluid-wall pairs of the last step.
+    pub fn pair_counts(&self) -> (usize, usize) {
+        (self.work.ff.pairs(), self.work.fb.pairs())
+    }
+}

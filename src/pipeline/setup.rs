@@ -1,0 +1,130 @@
+//! Building a [`Simulation`] from a [`Scene`]: sampling, the static wall
+//! structures, and the initial time step.
+
+use super::{Params, Simulation, StepStats, Workspace};
+use crate::scene::{sample_fluid, sample_walls, Scene};
+use crate::store::{FluidStore, WallStore};
+use bumpalo::Bump;
+use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+
+impl Params {
+    /// Parameters of a scene (PHYSICS.md §1: H = 2h, h = particle spacing).
+    pub fn from_scene(scene: &Scene) -> Self {
+        let s = &scene.simulation;
+        let h = s.particle_spacing;
+        Self {
+            h,
+            kernel: CubicSpline::new(2.0 * h),
+            gravity: s.gravity,
+            max_dt: s.max_dt,
+            cfl: s.cfl_number,
+            max_density_error: s.max_density_error,
+            min_iterations: s.min_iterations,
+            max_iterations: s.max_iterations,
+            omega: s.omega,
+            phase_density: scene.phases.iter().map(|p| p.density).collect(),
+            phase_viscosity: scene.phases.iter().map(|p| p.viscosity).collect(),
+        }
+    }
+
+    /// The lattice volume h^3, m^3: rest volume of a full fluid particle
+    /// (P §6.1, V_f0 = alpha_f h^3) and of a wall particle.
+    pub fn cell_volume(&self) -> f32 {
+        self.h * self.h * self.h
+    }
+}
+
+impl Simulation {
+    /// Samples the scene into particles and prepares the static walls.
+    pub fn new(scene: Scene) -> Self {
+        let params = Params::from_scene(&scene);
+        let sampled_walls = sample_walls(&scene);
+        let sampled_fluid = sample_fluid(&scene, &sampled_walls);
+        let nf = sampled_fluid.positions.len();
+        let nw = sampled_walls.positions.len();
+        let k = scene.phases.len();
+
+        let mut fluid = FluidStore::default();
+        for (p, v) in sampled_fluid
+            .positions
+            .iter()
+            .zip(&sampled_fluid.velocities)
+        {
+            fluid.x.push(p[0]);
+            fluid.y.push(p[1]);
+            fluid.z.push(p[2]);
+            fluid.ux.push(v[0]);
+            fluid.uy.push(v[1]);
+            fluid.uz.push(v[2]);
+        }
+        fluid.pressure = vec![0.0; nf];
+        fluid.density = vec![0.0; nf];
+        fluid.alpha = (0..k)
+            .map(|ph| sampled_fluid.fractions.iter().map(|f| f[ph]).collect())
+            .collect();
+        fluid.id = (0..nf as u32).collect();
+
+        let mut walls = WallStore::default();
+        for p in &sampled_walls.positions {
+            walls.x.push(p[0]);
+            walls.y.push(p[1]);
+            walls.z.push(p[2]);
+        }
+        // Walls are sampled on the particle lattice (scene::geometry), so
+        // each wall particle stands for one lattice cell, h^3, exactly like
+        // a fluid particle: the smoothed volume fraction sum_j V0_j W_ij is
+        // then 1 at a flat wall with fluid at rest, on both sides of it.
+        walls.rest_volume = vec![params.cell_volume(); nw];
+        walls.pressure = vec![0.0; nw];
+        walls.density = vec![0.0; nw];
+        walls.sigma_static = vec![0.0; nw];
+        walls.id = (nf as u32..(nf + nw) as u32).collect();
+
+        let mut work = Workspace::default();
+        // Walls never move: sort them once and build their grid once.
+        let inv_cell = 1.0 / params.kernel.support;
+        work.keys.resize(nw, 0);
+        compute_keys(&walls.x, &walls.y, &walls.z, inv_cell, &mut work.keys);
+        sort_permutation(&work.keys, &mut work.sort, &mut work.perm);
+        walls.reorder(&work.perm, &mut work.reorder);
+        let sorted: Vec<u64> = work.sort.iter().map(|&(k, _)| k).collect();
+        work.wall_grid.build(&sorted, params.kernel.support);
+        let mut bb = PairLists::default();
+        let pts = Points {
+            x: &walls.x,
+            y: &walls.y,
+            z: &walls.z,
+        };
+        build_pairs(&mut bb, pts, pts, &work.wall_grid, &params.kernel);
+        for (b, blk) in bb.blocks.iter().enumerate() {
+            for q in 0..blk.start.len().saturating_sub(1) {
+                let i = b * porosph_kernels::blocks::BLOCK + q;
+                walls.sigma_static[i] = blk
+                    .range(q)
+                    .map(|p| walls.rest_volume[blk.j[p] as usize] * blk.w[p])
+                    .sum();
+            }
+        }
+        let rho_ref = params.phase_density.first().copied().unwrap_or(1000.0);
+        for (d, s) in walls.density.iter_mut().zip(&walls.sigma_static) {
+            *d = rho_ref * s;
+        }
+
+        let mut sim = Simulation {
+            scene,
+            params,
+            fluid,
+            walls,
+            time: 0.0,
+            step: 0,
+            dt: 0.0,
+            last: StepStats::default(),
+            work,
+            arena: Bump::new(),
+        };
+        let v0 = sim.max_speed();
+        sim.dt = sim.next_dt(v0);
+        sim
+    }
+}

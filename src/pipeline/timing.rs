@@ -1,0 +1,54 @@
+//! Names and timers of the passes of a step (PHYSICS.md §6). The same names
+//! head the `ms_<pass>` columns of `stats.csv` on every backend.
+
+use std::time::Instant;
+
+/// The passes of a single-fluid step, in order, with their PHYSICS.md §6
+/// numbers: 0 neighbour search (incl. Morton sort and reorder), 1 phase
+/// bookkeeping, 2 densities and volumes (4a-b), 3 viscosity and u*, 4c
+/// sources and diagonal, 5 the IISPH Jacobi loop, 13 integration, 14 the
+/// next time step (CFL).
+pub const PASSES: [&str; 8] = [
+    "neighbors",
+    "phases",
+    "densities",
+    "viscosity",
+    "ppe_setup",
+    "pressure_solve",
+    "integrate",
+    "time_step",
+];
+
+/// Index of each pass in [`PASSES`].
+pub mod pass {
+    pub const NEIGHBORS: usize = 0;
+    pub const PHASES: usize = 1;
+    pub const DENSITIES: usize = 2;
+    pub const VISCOSITY: usize = 3;
+    pub const PPE_SETUP: usize = 4;
+    pub const PRESSURE_SOLVE: usize = 5;
+    pub const INTEGRATE: usize = 6;
+    pub const TIME_STEP: usize = 7;
+}
+
+/// Wall-clock milliseconds per pass of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PassTimes {
+    pub ms: [f64; PASSES.len()],
+}
+
+impl PassTimes {
+    /// Runs `f`, adding its wall time to pass `p`.
+    #[inline]
+    pub fn time<T>(&mut self, p: usize, f: impl FnOnce() -> T) -> T {
+        let t = Instant::now();
+        let r = f();
+        self.ms[p] += t.elapsed().as_secs_f64() * 1e3;
+        r
+    }
+
+    /// Sum over passes, ms.
+    pub fn total(&self) -> f64 {
+        self.ms.iter().sum()
+    }
+}
