@@ -5,7 +5,9 @@
 //! arrays, Morton-sorted) -> [`pipeline`] (one step = the passes of
 //! PHYSICS.md §6, computed by `porosph-kernels`) -> [`io`] (frames, stats).
 
+pub mod builtin;
 pub mod io;
 pub mod pipeline;
+pub mod run;
 pub mod scene;
 pub mod store;
