@@ -37,12 +37,16 @@ fi
 
 # (b) the wheel's bundled GL dispatch segfaults unless the system one is preloaded
 if [[ ! -e "$GLDISPATCH" ]]; then
-    echo "peer_splishsplash: $GLDISPATCH missing, installing libgldispatch0" >&2
+    echo "peer_splishsplash: $GLDISPATCH missing, installing it with apt-get" >&2
     SUDO=""
     [[ "$(id -u)" -ne 0 ]] && SUDO="sudo"
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libgldispatch0 \
-        || DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libglvnd0
+    # Debian bookworm ships libGLdispatch in libglvnd0; some releases split it out as libgldispatch0
+    for pkg in libgldispatch0 libglvnd0; do
+        if apt-cache show "$pkg" >/dev/null 2>&1; then
+            DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "$pkg" && break
+        fi
+    done
     if [[ ! -e "$GLDISPATCH" ]]; then
         echo "peer_splishsplash: $GLDISPATCH still missing after apt-get" >&2
         exit 1

@@ -1,1 +1,174 @@
-fn main() {}
+//! Dam-break benchmark of the whole step, per pass.
+//!
+//! The scene is SPlisHSPlasH's DamBreakModel geometry, as run by
+//! `../shared/peers/splishsplash_dambreak.py`: a 1 m fluid cube at
+//! x[-1.95,-0.95] y[0.05,1.05] z[-0.5,0.5] in a 4 x 3 x 1.5 m tank
+//! (x[-2,2] y[0,3] z[-0.75,0.75]), fixed dt (the CFL rule never binds in
+//! the measured window), water (1000 kg/m^3, 0.01 Pa s).
+//!
+//! Prints particle-steps/s of the whole step (fluid particles x steps /
+//! wall seconds), mean ms per pass, mean solver iterations, and bytes of
+//! memory per fluid particle; `--json FILE` appends the result as JSON.
+//!
+//! ```sh
+//! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 60 --warmup 10 --threads 2
+//! ```
+
+use porosph::pipeline::{Simulation, PASSES};
+use porosph::scene::Scene;
+use std::io::Write;
+use std::time::Instant;
+
+struct Args {
+    spacing: f32,
+    steps: u64,
+    warmup: u64,
+    threads: usize,
+    max_error: f32,
+    dt: f32,
+    json: Option<String>,
+}
+
+fn parse() -> Result<Args, String> {
+    let mut a = Args { spacing: 0.015625, steps: 60, warmup: 10, threads: 2, max_error: 0.001, dt: 0.001, json: None };
+    let mut it = std::env::args().skip(1);
+    while let Some(k) = it.next() {
+        let mut v = || it.next().ok_or(format!("{k} needs a value"));
+        match k.as_str() {
+            "--spacing" => a.spacing = v()?.parse().map_err(|e| format!("--spacing: {e}"))?,
+            "--particles" => {
+                let n: f64 = v()?.parse().map_err(|e| format!("--particles: {e}"))?;
+                a.spacing = (1.0 / n.cbrt()) as f32;
+            }
+            "--steps" => a.steps = v()?.parse().map_err(|e| format!("--steps: {e}"))?,
+            "--warmup" => a.warmup = v()?.parse().map_err(|e| format!("--warmup: {e}"))?,
+            "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
+            "--max-error" => a.max_error = v()?.parse().map_err(|e| format!("--max-error: {e}"))?,
+            "--dt" => a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?,
+            "--json" => a.json = Some(v()?),
+            "-h" | "--help" => {
+                return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
+                            [--threads N] [--max-error FRACTION] [--dt S] [--json FILE]"
+                    .into())
+            }
+            _ => return Err(format!("unknown argument {k}")),
+        }
+    }
+    if a.steps <= a.warmup {
+        return Err("--steps must exceed --warmup".into());
+    }
+    Ok(a)
+}
+
+fn scene(a: &Args) -> Result<Scene, String> {
+    let text = format!(
+        r#"[simulation]
+particle_spacing = {sp}
+end_time = 100.0
+max_dt = {dt}
+max_density_error = {err}
+frame_interval = 100.0
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.01
+[[fluid]]
+box = {{ min = [-1.95, 0.05, -0.5], max = [-0.95, 1.05, 0.5] }}
+fractions = {{ water = 1.0 }}
+[[wall]]
+box = {{ min = [-2.0, 0.0, -0.75], max = [2.0, 3.0, 0.75] }}
+container = true
+"#,
+        sp = a.spacing,
+        dt = a.dt,
+        err = a.max_error
+    );
+    Scene::from_toml_str(&text, "<bench dam break>").map_err(|e| e.to_string())
+}
+
+fn main() {
+    let a = match parse() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().expect("thread pool");
+    pool.install(|| bench(&a));
+}
+
+fn bench(a: &Args) {
+    let scene = match scene(a) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let t0 = Instant::now();
+    let mut sim = Simulation::new(scene);
+    let setup_s = t0.elapsed().as_secs_f64();
+    let n = sim.fluid.len();
+    eprintln!("{} fluid + {} wall particles, setup {:.2} s, {} threads", n, sim.walls.len(), setup_s, a.threads);
+    let mut pass_ms = [0.0f64; PASSES.len()];
+    let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
+    let mut step_s = Vec::new();
+    for s in 0..a.steps {
+        let t = Instant::now();
+        let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
+        let el = t.elapsed().as_secs_f64();
+        if s >= a.warmup {
+            measured += 1;
+            wall_s += el;
+            step_s.push(el);
+            iters += st.iterations as u64;
+            min_dt = min_dt.min(st.dt);
+            for (acc, v) in pass_ms.iter_mut().zip(st.times.ms) {
+                *acc += v;
+            }
+        }
+    }
+    step_s.sort_by(f64::total_cmp);
+    let median = step_s[step_s.len() / 2];
+    let m = measured as f64;
+    let pps = n as f64 * m / wall_s;
+    let (ff, fb) = sim.pair_counts();
+    println!("fluid particles      {n}");
+    println!("steps measured       {measured} (after {} warm-up), t = {:.3} s, min dt {:.2e} s", a.warmup, sim.time, min_dt);
+    println!("mean s/step          {:.4}  (median {:.4})", wall_s / m, median);
+    println!("particle-steps/s     {:.3} M  (median step: {:.3} M)", pps / 1e6, n as f64 / median / 1e6);
+    println!("mean iterations      {:.2}", iters as f64 / m);
+    println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
+    println!("bytes/particle       {:.0}", sim.bytes_per_particle());
+    println!("ms per pass (mean):");
+    for (p, v) in PASSES.iter().zip(pass_ms) {
+        println!("  {:<16} {:8.2}", p, v / m);
+    }
+    if let Some(path) = &a.json {
+        let passes: Vec<String> = PASSES.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
+        let line = format!(
+            "{{\"fluid_particles\": {n}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
+             \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \
+             \"particle_steps_per_s\": {:.0}, \"mean_iterations\": {:.2}, \"bytes_per_particle\": {:.0}, \
+             \"ms_per_pass\": {{{}}}}}",
+            a.spacing,
+            a.threads,
+            a.dt,
+            a.max_error,
+            a.warmup,
+            wall_s / m,
+            median,
+            pps,
+            iters as f64 / m,
+            sim.bytes_per_particle(),
+            passes.join(", ")
+        );
+        match std::fs::OpenOptions::new().create(true).append(true).open(path) {
+            Ok(mut f) => {
+                let _ = writeln!(f, "{line}");
+            }
+            Err(e) => eprintln!("{path}: {e}"),
+        }
+    }
+}
