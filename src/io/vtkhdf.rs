@@ -1,18 +1,580 @@
-//! VTKHDF PolyData frames. (placeholder: being written)
-use super::{Frame, IoError};
-use std::path::Path;
+//! VTKHDF PolyData frames: one file per frame, read by VTK's `vtkHDFReader`
+//! (and so ParaView), layout as in `shared/formats/VTKHDF.md`.
+//!
+//! ```text
+//! /                    attrs: time (f64), step (i64)       for h5py users
+//! /VTKHDF              attrs: Version = int64 [2, 2], Type = "PolyData" (fixed-length ASCII)
+//!   NumberOfPoints     int64 [1] = [N]
+//!   Points             f32 [N, 3]
+//!   Vertices/          one vertex cell per point:
+//!     NumberOfCells [N], NumberOfConnectivityIds [N], Connectivity 0..N-1, Offsets 0..=N
+//!   Lines/ Polygons/ Strips/   empty, but required by the reader:
+//!     NumberOfCells [0], NumberOfConnectivityIds [0], Connectivity [], Offsets [0]
+//!   PointData/<name>   f32 | u32 | u8, [N] (1 component) or [N, components]; attr unit
+//!   FieldData/time     f64 [1]
+//!   FieldData/step     int64 [1]
+//! ```
+//!
+//! Datasets are contiguous and uncompressed: a frame is written in one pass
+//! at disk speed. PointData keeps link creation order, so arrays read back in
+//! the order they were written.
+
+use super::{ArrayData, Frame, IoError, PointArray};
+use hdf5::plist::group_create::LinkCreationOrder;
+use hdf5::types::{FixedAscii, FixedUnicode, TypeDescriptor, VarLenAscii, VarLenUnicode};
+use hdf5::types::{FloatSize, IntSize};
+use hdf5::{Dataset, File, Group, H5Type, IndexType, IterationOrder, Location};
+use std::ffi::OsString;
+use std::fmt::{self, Display, Write as _};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// VTKHDF format version written to `/VTKHDF@Version`; PolyData needs >= 2.0.
+const VERSION: [i64; 2] = [2, 2];
+
+/// The topology groups a PolyData file must have, vertices first.
+const TOPOLOGIES: [&str; 4] = ["Vertices", "Lines", "Polygons", "Strips"];
 
 /// Writes one frame to `path` (via a temporary name and a rename).
-pub fn write_frame(_path: &Path, _frame: &Frame) -> Result<(), IoError> {
-    unimplemented!("vtkhdf")
+///
+/// The file is first written to `.<name>.tmp` in the same directory, closed
+/// and synced, then renamed over `path`: a crash leaves either the old file
+/// or the new one, never a torn frame. On error the temporary file is removed.
+pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), IoError> {
+    check_frame(frame).map_err(|reason| IoError::new(path, reason))?;
+    let tmp = temp_path(path)?;
+    let written = write_file(&tmp, frame)
+        .and_then(|()| sync_file(&tmp))
+        .and_then(|()| {
+            fs::rename(&tmp, path)
+                .map_err(|e| format!("cannot rename {} to it: {e}", tmp.display()))
+        });
+    written.map_err(|reason| {
+        // Best effort: the temporary file may not exist (creation failed).
+        let _ = fs::remove_file(&tmp);
+        IoError::new(path, reason)
+    })
 }
 
 /// Reads a frame written by [`write_frame`].
-pub fn read_frame(_path: &Path) -> Result<Frame, IoError> {
-    unimplemented!("vtkhdf")
+///
+/// Errors name the file and say what is wrong: missing file, not HDF5, not a
+/// VTKHDF PolyData file, a missing dataset, a wrong shape or element type.
+pub fn read_frame(path: &Path) -> Result<Frame, IoError> {
+    let meta = fs::metadata(path).map_err(|e| IoError::new(path, format!("cannot read: {e}")))?;
+    if !meta.is_file() {
+        return Err(IoError::new(path, "not a regular file"));
+    }
+    let file = File::open(path)
+        .map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
+    read_file(&file).map_err(|reason| IoError::new(path, reason))
 }
 
-/// A human-readable summary of a frame file, for `porosph inspect`.
-pub fn inspect_frame(_path: &Path) -> Result<String, IoError> {
-    unimplemented!("vtkhdf")
+/// A human-readable summary of a frame file, for `porosph inspect`: time,
+/// step, point count, and per array its components, unit and range (per
+/// component), NaN count if any, and for `kind` the points per kind.
+pub fn inspect_frame(path: &Path) -> Result<String, IoError> {
+    let frame = read_frame(path)?;
+    let mut s = String::new();
+    // Writing into a String cannot fail.
+    let _ = summarize(&mut s, path, &frame);
+    Ok(s)
+}
+
+fn summarize(s: &mut String, path: &Path, frame: &Frame) -> fmt::Result {
+    writeln!(s, "file:   {}", path.display())?;
+    writeln!(s, "time:   {} s", frame.time)?;
+    writeln!(s, "step:   {}", frame.step)?;
+    writeln!(s, "points: {}", frame.points.len())?;
+    let coords: Vec<f64> = frame
+        .points
+        .as_flattened()
+        .iter()
+        .map(|&x| f64::from(x))
+        .collect();
+    match bounds(&coords, 3) {
+        Some((lo, hi)) => writeln!(
+            s,
+            "bounds: {} .. {} m",
+            Values(&lo, true),
+            Values(&hi, true)
+        )?,
+        None => writeln!(s, "bounds: -")?,
+    }
+    writeln!(s, "arrays: {}", frame.arrays.len())?;
+    for a in &frame.arrays {
+        let unit = if a.unit.is_empty() {
+            "-"
+        } else {
+            a.unit.as_str()
+        };
+        let (values, is_f32): (Vec<f64>, bool) = match &a.data {
+            ArrayData::F32(v) => (v.iter().map(|&x| f64::from(x)).collect(), true),
+            ArrayData::U32(v) => (v.iter().map(|&x| f64::from(x)).collect(), false),
+            ArrayData::U8(v) => (v.iter().map(|&x| f64::from(x)).collect(), false),
+        };
+        write!(
+            s,
+            "  {:<16} {} x {:<3}  unit {:<8}",
+            a.name,
+            a.components,
+            dtype_name(&a.data),
+            unit
+        )?;
+        match bounds(&values, a.components) {
+            Some((lo, hi)) => write!(
+                s,
+                "  min {}  max {}",
+                Values(&lo, is_f32),
+                Values(&hi, is_f32)
+            )?,
+            None => write!(s, "  min -  max -")?,
+        }
+        let nans = values.iter().filter(|x| x.is_nan()).count();
+        if nans > 0 {
+            write!(s, "  NaN {nans}")?;
+        }
+        writeln!(s)?;
+        if a.name == "kind" && a.components == 1 {
+            writeln!(s, "    {}", kind_counts(&values))?;
+        }
+    }
+    Ok(())
+}
+
+/// `fluid 500, solid 300, wall 200` (and `kind 7: 3` for unknown values).
+fn kind_counts(values: &[f64]) -> String {
+    let mut counts: Vec<(f64, usize)> = Vec::new();
+    for &v in values {
+        match counts
+            .iter_mut()
+            .find(|(k, _)| *k == v || (k.is_nan() && v.is_nan()))
+        {
+            Some((_, c)) => *c += 1,
+            None => counts.push((v, 1)),
+        }
+    }
+    counts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let named = |k: f64| {
+        if k == 0.0 {
+            "fluid".to_string()
+        } else if k == 1.0 {
+            "solid".to_string()
+        } else if k == 2.0 {
+            "wall".to_string()
+        } else {
+            format!("kind {k}")
+        }
+    };
+    let parts: Vec<String> = counts
+        .iter()
+        .map(|&(k, c)| format!("{} {c}", named(k)))
+        .collect();
+    if parts.is_empty() {
+        "no points".to_string()
+    } else {
+        parts.join(", ")
+    }
+}
+
+/// Per-component min and max of point-major `values`, NaN ignored; `None`
+/// if there is no number at all.
+fn bounds(values: &[f64], components: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let mut lo = vec![f64::INFINITY; components];
+    let mut hi = vec![f64::NEG_INFINITY; components];
+    for point in values.chunks_exact(components) {
+        for (c, &x) in point.iter().enumerate() {
+            if !x.is_nan() {
+                lo[c] = lo[c].min(x);
+                hi[c] = hi[c].max(x);
+            }
+        }
+    }
+    if lo.iter().zip(&hi).any(|(l, h)| l > h) {
+        return None;
+    }
+    Some((lo, hi))
+}
+
+/// One value, or `[a, b, c]` for several; `f32` values print in their own
+/// shortest form (`0.1`, not `0.10000000149011612`).
+struct Values<'a>(&'a [f64], bool);
+
+impl Display for Values<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let one = |f: &mut fmt::Formatter<'_>, x: f64| {
+            // Exact: the value came from an f32.
+            if self.1 {
+                write!(f, "{}", x as f32)
+            } else {
+                write!(f, "{x}")
+            }
+        };
+        if let [x] = self.0 {
+            return one(f, *x);
+        }
+        f.write_str("[")?;
+        for (i, &x) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            one(f, x)?;
+        }
+        f.write_str("]")
+    }
+}
+
+fn dtype_name(data: &ArrayData) -> &'static str {
+    match data {
+        ArrayData::F32(_) => "f32",
+        ArrayData::U32(_) => "u32",
+        ArrayData::U8(_) => "u8",
+    }
+}
+
+/// `.<file name>.tmp` next to `path`.
+fn temp_path(path: &Path) -> Result<PathBuf, IoError> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| IoError::new(path, "not a file name"))?;
+    let mut tmp = OsString::from(".");
+    tmp.push(name);
+    tmp.push(".tmp");
+    Ok(path.with_file_name(tmp))
+}
+
+/// Rejects frames that would write an inconsistent or unreadable file.
+fn check_frame(frame: &Frame) -> Result<(), String> {
+    let n = frame.points.len();
+    i64::try_from(frame.step).map_err(|_| format!("step {} does not fit in int64", frame.step))?;
+    for (i, a) in frame.arrays.iter().enumerate() {
+        if a.name.is_empty() || a.name == "." || a.name.contains('/') || a.name.contains('\0') {
+            return Err(format!(
+                "array name {:?} is not a valid HDF5 dataset name",
+                a.name
+            ));
+        }
+        if frame.arrays[..i].iter().any(|b| b.name == a.name) {
+            return Err(format!("array name {:?} appears twice", a.name));
+        }
+        if a.components == 0 {
+            return Err(format!("array {:?} has 0 components", a.name));
+        }
+        let len = match &a.data {
+            ArrayData::F32(v) => v.len(),
+            ArrayData::U32(v) => v.len(),
+            ArrayData::U8(v) => v.len(),
+        };
+        if Some(len) != n.checked_mul(a.components) {
+            return Err(format!(
+                "array {:?} has {len} values, expected {n} points x {} components",
+                a.name, a.components
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Adds what was being done to an HDF5 error.
+trait Context<T> {
+    fn ctx(self, what: impl Display) -> Result<T, String>;
+}
+
+impl<T> Context<T> for hdf5::Result<T> {
+    fn ctx(self, what: impl Display) -> Result<T, String> {
+        self.map_err(|e| format!("{what}: {e}"))
+    }
+}
+
+fn write_file(tmp: &Path, frame: &Frame) -> Result<(), String> {
+    let file = File::create(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
+    write_contents(&file, frame)?;
+    // Closing flushes: a full disk may only show up here.
+    file.close()
+        .ctx(format_args!("cannot close {}", tmp.display()))
+}
+
+/// Forces the closed file's data to disk before the rename makes it visible.
+fn sync_file(tmp: &Path) -> Result<(), String> {
+    fs::File::open(tmp)
+        .and_then(|f| f.sync_all())
+        .map_err(|e| format!("cannot sync {}: {e}", tmp.display()))
+}
+
+fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
+    let n = frame.points.len();
+    let n_ids = n as i64;
+    // Checked in check_frame.
+    let step = frame.step as i64;
+
+    write_scalar_attr(file, "time", &frame.time)?;
+    write_scalar_attr(file, "step", &step)?;
+
+    let vtk = file.create_group("VTKHDF").ctx("cannot create /VTKHDF")?;
+    vtk.new_attr_builder()
+        .with_data(&VERSION[..])
+        .create("Version")
+        .ctx("cannot write /VTKHDF@Version")?;
+    let poly_data = FixedAscii::<8>::from_ascii("PolyData").map_err(|e| e.to_string())?;
+    vtk.new_attr::<FixedAscii<8>>()
+        .shape(())
+        .create("Type")
+        .and_then(|a| a.as_writer().write_scalar(&poly_data))
+        .ctx("cannot write /VTKHDF@Type")?;
+
+    write_dataset(&vtk, "NumberOfPoints", &[n_ids], &[1])?;
+    write_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3])?;
+
+    for topology in TOPOLOGIES {
+        let g = vtk
+            .create_group(topology)
+            .ctx(format_args!("cannot create /VTKHDF/{topology}"))?;
+        // One vertex cell per point; the other topologies are empty.
+        let cells = if topology == "Vertices" { n } else { 0 };
+        let cells_i64 = cells as i64;
+        let connectivity: Vec<i64> = (0..cells_i64).collect();
+        let offsets: Vec<i64> = (0..=cells_i64).collect();
+        write_dataset(&g, "NumberOfCells", &[cells_i64], &[1])?;
+        write_dataset(&g, "NumberOfConnectivityIds", &[cells_i64], &[1])?;
+        write_dataset(&g, "Connectivity", &connectivity, &[cells])?;
+        write_dataset(&g, "Offsets", &offsets, &[cells + 1])?;
+    }
+
+    let point_data = vtk
+        .create_group_builder()
+        .with_gcpl(|p| p.link_creation_order(LinkCreationOrder::Indexed))
+        .create("PointData")
+        .ctx("cannot create /VTKHDF/PointData")?;
+    for a in &frame.arrays {
+        let shape: &[usize] = if a.components == 1 {
+            &[n]
+        } else {
+            &[n, a.components]
+        };
+        let ds = match &a.data {
+            ArrayData::F32(v) => write_dataset(&point_data, &a.name, v, shape)?,
+            ArrayData::U32(v) => write_dataset(&point_data, &a.name, v, shape)?,
+            ArrayData::U8(v) => write_dataset(&point_data, &a.name, v, shape)?,
+        };
+        let unit: VarLenUnicode = a
+            .unit
+            .parse()
+            .map_err(|e| format!("unit of {:?}: {e}", a.name))?;
+        write_scalar_attr(&ds, "unit", &unit)?;
+    }
+
+    let field_data = vtk
+        .create_group("FieldData")
+        .ctx("cannot create /VTKHDF/FieldData")?;
+    write_dataset(&field_data, "time", &[frame.time], &[1])?;
+    write_dataset(&field_data, "step", &[step], &[1])?;
+    Ok(())
+}
+
+fn write_scalar_attr<T: H5Type>(loc: &Location, name: &str, value: &T) -> Result<(), String> {
+    loc.new_attr::<T>()
+        .shape(())
+        .create(name)
+        .and_then(|a| a.as_writer().write_scalar(value))
+        .ctx(format_args!("cannot write attribute {}@{name}", loc.name()))
+}
+
+/// A contiguous dataset of `shape` holding `data` (row-major).
+fn write_dataset<T: H5Type>(
+    group: &Group,
+    name: &str,
+    data: &[T],
+    shape: &[usize],
+) -> Result<Dataset, String> {
+    let what = || format!("cannot write {}/{name}", group.name());
+    let ds = group
+        .new_dataset::<T>()
+        .shape(shape)
+        .create(name)
+        .ctx(what())?;
+    if !data.is_empty() {
+        ds.as_writer().write_raw(data).ctx(what())?;
+    }
+    Ok(ds)
+}
+
+fn read_file(file: &File) -> Result<Frame, String> {
+    let vtk = file
+        .group("VTKHDF")
+        .map_err(|_| "no /VTKHDF group: not a VTKHDF file".to_string())?;
+    let kind = read_string_attr(&vtk, "Type")?;
+    if kind != "PolyData" {
+        return Err(format!("/VTKHDF@Type is {kind:?}, expected \"PolyData\""));
+    }
+
+    let points_ds = open_dataset(&vtk, "Points")?;
+    let n = match points_ds.shape()[..] {
+        [n, 3] => n,
+        ref shape => {
+            return Err(format!(
+                "/VTKHDF/Points has shape {shape:?}, expected [N, 3]"
+            ))
+        }
+    };
+    let flat: Vec<f32> = read_values(&points_ds, "/VTKHDF/Points", Element::Float)?;
+    let points = flat.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+
+    let counts: Vec<i64> = read_values(
+        &open_dataset(&vtk, "NumberOfPoints")?,
+        "/VTKHDF/NumberOfPoints",
+        Element::Int,
+    )?;
+    if counts.iter().sum::<i64>() != n as i64 {
+        return Err(format!(
+            "/VTKHDF/NumberOfPoints is {counts:?} but Points has {n} rows"
+        ));
+    }
+
+    let mut arrays = Vec::new();
+    if vtk.link_exists("PointData") {
+        let point_data = vtk
+            .group("PointData")
+            .ctx("cannot open /VTKHDF/PointData")?;
+        let names = point_data
+            .member_names_by(IndexType::CreationOrder, IterationOrder::Increasing)
+            .or_else(|_| point_data.member_names())
+            .ctx("cannot list /VTKHDF/PointData")?;
+        for name in names {
+            arrays.push(read_array(&point_data, &name, n)?);
+        }
+    }
+
+    let field_data = vtk
+        .group("FieldData")
+        .map_err(|_| "no /VTKHDF/FieldData group (time and step)".to_string())?;
+    let time = read_single::<f64>(&field_data, "time", Element::Float)?;
+    let step = read_single::<i64>(&field_data, "step", Element::Int)?;
+    let step = u64::try_from(step).map_err(|_| format!("/VTKHDF/FieldData/step is {step}"))?;
+
+    Ok(Frame {
+        time,
+        step,
+        points,
+        arrays,
+    })
+}
+
+fn open_dataset(group: &Group, name: &str) -> Result<Dataset, String> {
+    group
+        .dataset(name)
+        .map_err(|_| format!("missing dataset {}/{name}", group.name()))
+}
+
+/// The element class a dataset must have to be read as a given Rust type.
+#[derive(Clone, Copy)]
+enum Element {
+    Float,
+    Int,
+}
+
+/// Reads all values of `ds` as `T`, converting within the element class only.
+fn read_values<T: H5Type>(ds: &Dataset, what: &str, class: Element) -> Result<Vec<T>, String> {
+    let desc = ds
+        .dtype()
+        .and_then(|t| t.to_descriptor())
+        .ctx(format_args!("{what}: element type"))?;
+    let ok = match class {
+        Element::Float => matches!(desc, TypeDescriptor::Float(_)),
+        Element::Int => matches!(
+            desc,
+            TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)
+        ),
+    };
+    if !ok {
+        return Err(format!("{what} has element type {desc}"));
+    }
+    ds.read_raw::<T>().ctx(format_args!("cannot read {what}"))
+}
+
+/// Reads a one-value dataset (shape [1] or scalar).
+fn read_single<T: H5Type + Copy>(group: &Group, name: &str, class: Element) -> Result<T, String> {
+    let what = format!("{}/{name}", group.name());
+    let ds = open_dataset(group, name)?;
+    if ds.size() != 1 {
+        return Err(format!("{what} has shape {:?}, expected [1]", ds.shape()));
+    }
+    let v: Vec<T> = read_values(&ds, &what, class)?;
+    v.first().copied().ok_or_else(|| format!("{what} is empty"))
+}
+
+fn read_array(group: &Group, name: &str, n: usize) -> Result<PointArray, String> {
+    let what = format!("/VTKHDF/PointData/{name}");
+    let ds = open_dataset(group, name)?;
+    let components = match ds.shape()[..] {
+        [rows] if rows == n => 1,
+        [rows, c] if rows == n && c > 0 => c,
+        ref shape => {
+            return Err(format!(
+                "{what} has shape {shape:?}, expected [{n}] or [{n}, components]"
+            ))
+        }
+    };
+    let desc = ds
+        .dtype()
+        .and_then(|t| t.to_descriptor())
+        .ctx(format_args!("{what}: element type"))?;
+    let data = match desc {
+        TypeDescriptor::Float(FloatSize::U4) => ArrayData::F32(ds.read_raw().ctx(&what)?),
+        TypeDescriptor::Unsigned(IntSize::U4) => ArrayData::U32(ds.read_raw().ctx(&what)?),
+        TypeDescriptor::Unsigned(IntSize::U1) => ArrayData::U8(ds.read_raw().ctx(&what)?),
+        other => {
+            return Err(format!(
+                "{what} has element type {other}, expected f32, u32 or u8"
+            ))
+        }
+    };
+    let unit = if ds
+        .attr_names()
+        .map(|a| a.iter().any(|s| s == "unit"))
+        .unwrap_or(false)
+    {
+        read_string_attr(&ds, "unit")?
+    } else {
+        String::new()
+    };
+    Ok(PointArray {
+        name: name.to_string(),
+        unit,
+        components,
+        data,
+    })
+}
+
+/// Reads a string attribute stored as any HDF5 string type (fixed or
+/// variable length, ASCII or UTF-8), scalar or of shape [1].
+fn read_string_attr(loc: &Location, name: &str) -> Result<String, String> {
+    let what = format!("{}@{name}", loc.name());
+    let attr = loc
+        .attr(name)
+        .map_err(|_| format!("missing attribute {what}"))?;
+    let desc = attr.dtype().and_then(|t| t.to_descriptor()).ctx(&what)?;
+    let first = |v: Vec<String>| {
+        v.into_iter()
+            .next()
+            .ok_or_else(|| format!("{what} is empty"))
+    };
+    match desc {
+        TypeDescriptor::FixedAscii(_) => {
+            let v: Vec<FixedAscii<1024>> = attr.read_raw().ctx(&what)?;
+            first(v.iter().map(|s| s.as_str().to_string()).collect())
+        }
+        TypeDescriptor::FixedUnicode(_) => {
+            let v: Vec<FixedUnicode<1024>> = attr.read_raw().ctx(&what)?;
+            first(v.iter().map(|s| s.as_str().to_string()).collect())
+        }
+        TypeDescriptor::VarLenAscii => {
+            let v: Vec<VarLenAscii> = attr.read_raw().ctx(&what)?;
+            first(v.iter().map(|s| s.as_str().to_string()).collect())
+        }
+        TypeDescriptor::VarLenUnicode => {
+            let v: Vec<VarLenUnicode> = attr.read_raw().ctx(&what)?;
+            first(v.iter().map(|s| s.as_str().to_string()).collect())
+        }
+        other => Err(format!("{what} has type {other}, expected a string")),
+    }
 }
