@@ -1,5 +1,20 @@
-//! Sampling shapes into particles on the lattice of spacing d. (placeholder: being written)
-use super::Scene;
+//! Sampling shapes into particles on the lattice of spacing d.
+//!
+//! Two lattices are used, both with spacing d = `simulation.particle_spacing`:
+//!
+//! - a box is sampled on its own lattice, `x = min + (i + 1/2) d` per axis with
+//!   `i in 0..n`, `n = round((max - min) / d)`. When `(max - min) / d` is not an
+//!   integer the box is snapped: it is treated as `n d` long from `min`;
+//! - spheres and cylinders are sampled on the global lattice `x = (i + 1/2) d`.
+//!
+//! Walls are sampled as a shell two layers deep, the width of the kernel
+//! support H = 2 d: wall particles deeper inside a solid are never neighbours of
+//! a fluid particle. Overlaps are resolved by dropping any particle closer than
+//! d / 2 to one kept before it (walls in file order, then fluid blocks in file
+//! order), with a hash grid of cell size d.
+
+use super::{Scene, Shape, Wall};
+use std::collections::HashMap;
 
 /// Fluid particles sampled from all `[[fluid]]` blocks.
 #[derive(Clone, Debug, Default)]
@@ -19,12 +34,331 @@ pub struct SampledWalls {
     pub positions: Vec<[f32; 3]>,
 }
 
-/// Samples the fluid blocks of a scene.
-pub fn sample_fluid(_scene: &Scene, _walls: &SampledWalls) -> SampledFluid {
-    unimplemented!("geometry")
+/// Samples the fluid blocks of a scene, block by block in file order, each in
+/// lattice order (z outermost, then y, then x).
+///
+/// A box block takes its own lattice points (`min + (i + 1/2) d`, `i in 0..n`);
+/// a sphere or cylinder block takes the global lattice points `(i + 1/2) d`
+/// inside it (signed distance <= 0). A point is dropped when it is closer than
+/// d / 2 to a wall particle or to a particle of an earlier block, or when it
+/// lies inside a solid (non-container) wall shape, whose core holds no wall
+/// particles but is not fluid either. Velocity and phase fractions come from
+/// the block.
+pub fn sample_fluid(scene: &Scene, walls: &SampledWalls) -> SampledFluid {
+    let mut out = SampledFluid::default();
+    let Some(d) = spacing(scene) else {
+        return out;
+    };
+    let min_dist = 0.5 * d;
+    let mut grid = PointGrid::new(d);
+    for &p in &walls.positions {
+        grid.insert(p);
+    }
+    let solids: Vec<&Wall> = scene.walls.iter().filter(|w| !w.container).collect();
+    for block in &scene.fluids {
+        let mut candidates = Vec::new();
+        match &block.shape {
+            Shape::Box { min, max } => box_lattice(min, max, d, None, &mut candidates),
+            shape => global_lattice(shape, d, &mut candidates, |s| s <= 0.0),
+        }
+        for p in candidates {
+            if solids.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) {
+                continue;
+            }
+            grid.insert(p);
+            out.positions.push(p);
+            out.velocities.push(block.velocity);
+            out.fractions.push(block.fractions.clone());
+        }
+    }
+    out
 }
 
-/// Samples the walls of a scene.
-pub fn sample_walls(_scene: &Scene) -> SampledWalls {
-    unimplemented!("geometry")
+/// Samples the walls of a scene, wall by wall in file order, each in lattice
+/// order (z outermost, then y, then x).
+///
+/// - A container box (`container = true`) gets two layers of particles outside
+///   its faces: its lattice points `min + (i + 1/2) d` with every index in
+///   `-2..=n+1` and at least one index outside `0..n` (the interior lattice is
+///   where fluid goes). With `open_top`, points above the box (y index >= n)
+///   are left out, so the side walls end at the top of the box. A box whose
+///   size is not a multiple of d is snapped to `n d` as described in the module
+///   documentation.
+/// - A solid box (an obstacle) gets its lattice points within two layers of
+///   its faces (index < 2 or >= n - 2 on some axis).
+/// - A solid sphere or cylinder gets the global lattice points `(i + 1/2) d`
+///   with signed distance in (-2 d, 0]: a shell two particles deep.
+///
+/// A point closer than d / 2 to a point of an earlier wall is dropped.
+pub fn sample_walls(scene: &Scene) -> SampledWalls {
+    let mut out = SampledWalls::default();
+    let Some(d) = spacing(scene) else {
+        return out;
+    };
+    let min_dist = 0.5 * d;
+    let mut grid = PointGrid::new(d);
+    for wall in &scene.walls {
+        let mut candidates = Vec::new();
+        match &wall.shape {
+            Shape::Box { min, max } if wall.container => {
+                container_lattice(min, max, d, wall.open_top, &mut candidates)
+            }
+            Shape::Box { min, max } => box_lattice(min, max, d, Some(2), &mut candidates),
+            shape => global_lattice(shape, d, &mut candidates, |s| s > -2.0 * d && s <= 0.0),
+        }
+        for p in candidates {
+            if !grid.any_within(p, min_dist) {
+                grid.insert(p);
+                out.positions.push(p);
+            }
+        }
+    }
+    out
+}
+
+/// Signed distance from `p` to the surface of `shape`, m: negative inside,
+/// positive outside, exact for all three shapes (the cylinder is capped at
+/// both ends).
+pub fn sdf(shape: &Shape, p: [f32; 3]) -> f32 {
+    let p = p.map(f64::from);
+    let dist = match shape {
+        Shape::Box { min, max } => {
+            // Standard box distance: q = |p - centre| - half extent per axis.
+            let mut q = [0.0; 3];
+            for i in 0..3 {
+                let (lo, hi) = (f64::from(min[i]), f64::from(max[i]));
+                q[i] = (p[i] - 0.5 * (lo + hi)).abs() - 0.5 * (hi - lo);
+            }
+            let outside = norm(q.map(|c| c.max(0.0)));
+            let inside = q[0].max(q[1]).max(q[2]).min(0.0);
+            outside + inside
+        }
+        Shape::Sphere { center, radius } => {
+            let v = [0, 1, 2].map(|i| p[i] - f64::from(center[i]));
+            norm(v) - f64::from(*radius)
+        }
+        Shape::Cylinder {
+            base,
+            axis,
+            radius,
+            height,
+        } => {
+            let v = [0, 1, 2].map(|i| p[i] - f64::from(base[i]));
+            let a = axis.map(f64::from);
+            let t = v[0] * a[0] + v[1] * a[1] + v[2] * a[2];
+            let radial = norm([0, 1, 2].map(|i| v[i] - t * a[i]));
+            let h = f64::from(*height);
+            // 2-D box distance in (radial, axial) coordinates.
+            let q_r = radial - f64::from(*radius);
+            let q_a = (t - 0.5 * h).abs() - 0.5 * h;
+            norm([q_r.max(0.0), q_a.max(0.0), 0.0]) + q_r.max(q_a).min(0.0)
+        }
+    };
+    dist as f32
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// The particle spacing as f64, or `None` when it is unusable (a [`Scene`] built
+/// by hand rather than parsed).
+fn spacing(scene: &Scene) -> Option<f64> {
+    let d = f64::from(scene.simulation.particle_spacing);
+    (d.is_finite() && d > 0.0).then_some(d)
+}
+
+/// Largest lattice index range per axis: keeps index arithmetic far from
+/// overflow for scenes built by hand (parsed scenes are limited much more).
+const MAX_CELLS_PER_AXIS: f64 = (1u64 << 30) as f64;
+
+/// Number of lattice cells of a box axis: `round((max - min) / d)`.
+fn cells(lo: f32, hi: f32, d: f64) -> i64 {
+    let n = ((f64::from(hi) - f64::from(lo)) / d).round();
+    if n.is_nan() {
+        0
+    } else {
+        n.clamp(0.0, MAX_CELLS_PER_AXIS) as i64
+    }
+}
+
+/// Position of lattice index `i` on a box axis starting at `lo`.
+fn box_coord(lo: f32, i: i64, d: f64) -> f32 {
+    (f64::from(lo) + (i as f64 + 0.5) * d) as f32
+}
+
+/// The lattice points of a box, `min + (i + 1/2) d` with `i in 0..n` per axis.
+/// With `layers = Some(L)`, only the points fewer than L layers from a face
+/// (index < L or >= n - L on some axis); with `None`, all of them.
+fn box_lattice(
+    min: &[f32; 3],
+    max: &[f32; 3],
+    d: f64,
+    layers: Option<i64>,
+    out: &mut Vec<[f32; 3]>,
+) {
+    let n = [0, 1, 2].map(|a| cells(min[a], max[a], d));
+    let layers = layers.unwrap_or(i64::MAX);
+    let depth = |i: i64, n: i64| i.min(n - 1 - i);
+    for k in 0..n[2] {
+        let z = box_coord(min[2], k, d);
+        for j in 0..n[1] {
+            let y = box_coord(min[1], j, d);
+            let push = |out: &mut Vec<[f32; 3]>, i: i64| out.push([box_coord(min[0], i, d), y, z]);
+            if depth(j, n[1]).min(depth(k, n[2])) < layers {
+                (0..n[0]).for_each(|i| push(out, i));
+            } else {
+                // Deep row: only the layers at both x ends.
+                let front = layers.min(n[0]);
+                (0..front).for_each(|i| push(out, i));
+                (front.max(n[0] - layers)..n[0]).for_each(|i| push(out, i));
+            }
+        }
+    }
+}
+
+/// The two layers of lattice points outside a container box: every index in
+/// `-2..=n+1`, at least one outside `0..n`; with `open_top`, the y index stops
+/// at `n - 1`.
+fn container_lattice(
+    min: &[f32; 3],
+    max: &[f32; 3],
+    d: f64,
+    open_top: bool,
+    out: &mut Vec<[f32; 3]>,
+) {
+    let n = [0, 1, 2].map(|a| cells(min[a], max[a], d));
+    let inside = |i: i64, n: i64| (0..n).contains(&i);
+    let j_end = if open_top { n[1] - 1 } else { n[1] + 1 };
+    for k in -2..=n[2] + 1 {
+        let z = box_coord(min[2], k, d);
+        for j in -2..=j_end {
+            let y = box_coord(min[1], j, d);
+            if inside(j, n[1]) && inside(k, n[2]) {
+                // The row crosses the interior: only the end layers are wall.
+                for i in [-2, -1, n[0], n[0] + 1] {
+                    out.push([box_coord(min[0], i, d), y, z]);
+                }
+            } else {
+                for i in -2..=n[0] + 1 {
+                    out.push([box_coord(min[0], i, d), y, z]);
+                }
+            }
+        }
+    }
+}
+
+/// The global lattice points `(i + 1/2) d` in the bounding box of `shape`
+/// (a sphere or cylinder) whose signed distance passes `keep`.
+fn global_lattice(shape: &Shape, d: f64, out: &mut Vec<[f32; 3]>, keep: impl Fn(f64) -> bool) {
+    let (lo, hi) = bounds(shape);
+    // Index range covering [lo, hi] with one cell to spare on each side.
+    let range = |a: usize| {
+        let first = (lo[a] / d - 0.5).floor() - 1.0;
+        let last = (hi[a] / d - 0.5).ceil() + 1.0;
+        if !(first.is_finite() && last.is_finite()) || last - first > MAX_CELLS_PER_AXIS {
+            return (0, -1);
+        }
+        (first as i64, last as i64)
+    };
+    let (rx, ry, rz) = (range(0), range(1), range(2));
+    let coord = |i: i64| ((i as f64 + 0.5) * d) as f32;
+    for k in rz.0..=rz.1 {
+        for j in ry.0..=ry.1 {
+            for i in rx.0..=rx.1 {
+                let p = [coord(i), coord(j), coord(k)];
+                if keep(f64::from(sdf(shape, p))) {
+                    out.push(p);
+                }
+            }
+        }
+    }
+}
+
+/// Axis-aligned bounding box of a shape, m.
+fn bounds(shape: &Shape) -> ([f64; 3], [f64; 3]) {
+    match shape {
+        Shape::Box { min, max } => (min.map(f64::from), max.map(f64::from)),
+        Shape::Sphere { center, radius } => {
+            let r = f64::from(*radius);
+            (
+                center.map(|c| f64::from(c) - r),
+                center.map(|c| f64::from(c) + r),
+            )
+        }
+        Shape::Cylinder {
+            base,
+            axis,
+            radius,
+            height,
+        } => {
+            let mut lo = [0.0; 3];
+            let mut hi = [0.0; 3];
+            for i in 0..3 {
+                let a = f64::from(axis[i]);
+                let b = f64::from(base[i]);
+                let top = b + f64::from(*height) * a;
+                // The end discs reach r sqrt(1 - a_i^2) along axis i.
+                let reach = f64::from(*radius) * (1.0 - a * a).max(0.0).sqrt();
+                lo[i] = b.min(top) - reach;
+                hi[i] = b.max(top) + reach;
+            }
+            (lo, hi)
+        }
+    }
+}
+
+/// Points hashed into cubic cells of size `cell`, for "is any point within r"
+/// queries with r <= cell.
+struct PointGrid {
+    cell: f64,
+    cells: HashMap<[i64; 3], Vec<[f32; 3]>>,
+}
+
+impl PointGrid {
+    fn new(cell: f64) -> Self {
+        PointGrid {
+            cell,
+            cells: HashMap::new(),
+        }
+    }
+
+    fn key(&self, p: [f32; 3]) -> [i64; 3] {
+        // `as` saturates, so far-away or non-finite points cannot overflow.
+        p.map(|c| (f64::from(c) / self.cell).floor() as i64)
+    }
+
+    fn insert(&mut self, p: [f32; 3]) {
+        let key = self.key(p);
+        self.cells.entry(key).or_default().push(p);
+    }
+
+    /// Whether a stored point is closer than `r` (<= the cell size) to `p`.
+    fn any_within(&self, p: [f32; 3], r: f64) -> bool {
+        debug_assert!(r <= self.cell);
+        let c = self.key(p);
+        let r2 = r * r;
+        for dz in -1..=1i64 {
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let key = [
+                        c[0].saturating_add(dx),
+                        c[1].saturating_add(dy),
+                        c[2].saturating_add(dz),
+                    ];
+                    let Some(points) = self.cells.get(&key) else {
+                        continue;
+                    };
+                    let hit = points.iter().any(|q| {
+                        let v = [0, 1, 2].map(|a| f64::from(p[a]) - f64::from(q[a]));
+                        v[0] * v[0] + v[1] * v[1] + v[2] * v[2] < r2
+                    });
+                    if hit {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
 }

@@ -9,7 +9,7 @@
 mod geometry;
 mod parse;
 
-pub use geometry::{sample_fluid, sample_walls, SampledFluid, SampledWalls};
+pub use geometry::{sample_fluid, sample_walls, sdf, SampledFluid, SampledWalls};
 
 use std::fmt;
 

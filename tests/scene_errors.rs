@@ -1,0 +1,652 @@
+//! Bad scene files: each is rejected with the key at fault and a reason that
+//! says what was expected; no input makes the parser panic.
+
+use porosph::scene::{Scene, SceneError, Shape};
+use std::path::Path;
+
+/// A valid scene that exercises every key.
+const FULL: &str = r#"
+[simulation]
+particle_spacing = 0.01
+end_time = 2.5
+max_dt = 0.001
+gravity = [0.0, -9.0, 0.5]
+max_density_error = 0.005
+frame_interval = 0.05
+cfl_number = 0.3
+min_iterations = 3
+max_iterations = 50
+omega = 0.7
+
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.001
+color = [0.1, 0.2, 0.9]
+
+[[phase]]
+name = "oil-2"
+density = 800
+viscosity = 0.05
+
+[[fluid]]
+box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }
+fractions = { water = 0.7, oil-2 = 0.3 }
+velocity = [1.0, 0.0, 0.0]
+
+[[fluid]]
+sphere = { center = [0.5, 0.3, 0.05], radius = 0.05 }
+fractions = { oil-2 = 1.0 }
+
+[[wall]]
+box = { min = [0.0, 0.0, 0.0], max = [0.8, 0.6, 0.1] }
+container = true
+open_top = true
+
+[[wall]]
+cylinder = { base = [0.4, 0.0, 0.0], axis = [0.0, 2.0, 0.0], radius = 0.05, height = 0.2 }
+"#;
+
+/// A minimal valid scene: the base that the malformed scenes below edit.
+const MINIMAL: &str = r#"
+[simulation]
+particle_spacing = 0.01
+end_time = 1.0
+max_dt = 0.002
+
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.01
+
+[[fluid]]
+box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }
+fractions = { water = 1.0 }
+velocity = [0.0, 0.0, 0.0]
+
+[[wall]]
+box = { min = [0.0, 0.0, 0.0], max = [0.8, 0.6, 0.1] }
+container = true
+"#;
+
+fn parse(text: &str) -> Result<Scene, SceneError> {
+    Scene::from_toml_str(text, "test.toml")
+}
+
+/// `MINIMAL` with `from` replaced by `to` (which must occur).
+fn edited(from: &str, to: &str) -> String {
+    assert!(MINIMAL.contains(from), "test bug: `{from}` not in MINIMAL");
+    MINIMAL.replacen(from, to, 1)
+}
+
+/// Asserts that `text` is rejected at `key` with a reason containing `fragment`.
+#[track_caller]
+fn assert_rejected(text: &str, key: &str, fragment: &str) {
+    match parse(text) {
+        Ok(_) => panic!("accepted a bad scene; expected an error at `{key}`:\n{text}"),
+        Err(e) => {
+            assert_eq!(e.file, "test.toml");
+            assert_eq!(e.key, key, "wrong key; the error was: {e}");
+            assert!(
+                e.reason.contains(fragment),
+                "reason lacks `{fragment}`: {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn full_scene_parses_with_its_values() {
+    let scene = parse(FULL).expect("valid scene");
+    let sim = &scene.simulation;
+    assert_eq!(sim.particle_spacing, 0.01);
+    assert_eq!(sim.end_time, 2.5);
+    assert_eq!(sim.max_dt, 0.001);
+    assert_eq!(sim.gravity, [0.0, -9.0, 0.5]);
+    assert_eq!(sim.max_density_error, 0.005);
+    assert_eq!(sim.frame_interval, 0.05);
+    assert_eq!(sim.cfl_number, 0.3);
+    assert_eq!(sim.min_iterations, 3);
+    assert_eq!(sim.max_iterations, 50);
+    assert_eq!(sim.omega, 0.7);
+
+    assert_eq!(scene.phases.len(), 2);
+    assert_eq!(scene.phases[0].name, "water");
+    assert_eq!(scene.phases[0].color, [0.1, 0.2, 0.9]);
+    assert_eq!(scene.phases[1].name, "oil-2");
+    assert_eq!(
+        scene.phases[1].density, 800.0,
+        "integers are accepted as numbers"
+    );
+    assert_eq!(scene.phases[1].viscosity, 0.05);
+    assert_ne!(scene.phases[1].color, scene.phases[0].color);
+
+    assert_eq!(scene.fluids.len(), 2);
+    assert_eq!(
+        scene.fluids[0].shape,
+        Shape::Box {
+            min: [0.0, 0.0, 0.0],
+            max: [0.2, 0.4, 0.1]
+        }
+    );
+    assert_eq!(scene.fluids[0].fractions, vec![0.7, 0.3]);
+    assert_eq!(scene.fluids[0].velocity, [1.0, 0.0, 0.0]);
+    assert_eq!(
+        scene.fluids[1].shape,
+        Shape::Sphere {
+            center: [0.5, 0.3, 0.05],
+            radius: 0.05
+        }
+    );
+    assert_eq!(
+        scene.fluids[1].fractions,
+        vec![0.0, 1.0],
+        "missing phases are 0"
+    );
+    assert_eq!(scene.fluids[1].velocity, [0.0; 3]);
+
+    assert_eq!(scene.walls.len(), 2);
+    assert!(scene.walls[0].container && scene.walls[0].open_top);
+    assert!(!scene.walls[1].container && !scene.walls[1].open_top);
+    assert_eq!(
+        scene.walls[1].shape,
+        Shape::Cylinder {
+            base: [0.4, 0.0, 0.0],
+            axis: [0.0, 1.0, 0.0],
+            radius: 0.05,
+            height: 0.2
+        },
+        "the axis is normalised"
+    );
+    assert_eq!(scene.origin, "test.toml");
+    assert_eq!(scene.text, FULL);
+}
+
+#[test]
+fn minimal_scene_gets_the_defaults() {
+    let scene = parse(MINIMAL).expect("valid scene");
+    let sim = &scene.simulation;
+    assert_eq!(sim.gravity, [0.0, -9.81, 0.0]);
+    assert_eq!(sim.max_density_error, 0.001);
+    assert_eq!(sim.frame_interval, 0.02);
+    assert_eq!(sim.cfl_number, 0.4);
+    assert_eq!(sim.min_iterations, 2);
+    assert_eq!(sim.max_iterations, 100);
+    assert_eq!(sim.omega, 0.5);
+    let c = scene.phases[0].color;
+    assert!(c.iter().all(|x| (0.0..=1.0).contains(x)));
+    assert!(!scene.walls[0].open_top);
+}
+
+#[test]
+fn default_colours_differ_between_phases() {
+    let mut text = MINIMAL.to_string();
+    for name in ["b", "c", "d", "e", "f", "g", "h"] {
+        text.push_str(&format!(
+            "\n[[phase]]\nname = \"{name}\"\ndensity = 1.0\nviscosity = 0.0\n"
+        ));
+    }
+    let scene = parse(&text).expect("valid scene");
+    for (i, a) in scene.phases.iter().enumerate() {
+        for b in &scene.phases[i + 1..] {
+            assert_ne!(a.color, b.color, "{} and {}", a.name, b.name);
+        }
+    }
+}
+
+#[test]
+fn fractions_within_tolerance_are_renormalised() {
+    let mut text = edited(
+        "fractions = { water = 1.0 }",
+        "fractions = { water = 0.6, oil = 0.40005 }",
+    );
+    text.push_str("\n[[phase]]\nname = \"oil\"\ndensity = 900.0\nviscosity = 0.1\n");
+    let scene = parse(&text).expect("valid scene");
+    let f = &scene.fluids[0].fractions;
+    assert!((f[0] + f[1] - 1.0).abs() < 1e-6, "{f:?}");
+    assert!((f[1] - 0.40005 / 1.00005).abs() < 1e-6);
+}
+
+#[test]
+fn zero_fluids_are_allowed() {
+    let text = edited(
+        "[[fluid]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions = { water = 1.0 }\nvelocity = [0.0, 0.0, 0.0]\n",
+        "",
+    );
+    assert!(parse(&text).expect("valid scene").fluids.is_empty());
+}
+
+#[test]
+fn unknown_top_level_key() {
+    let text = format!("solver = \"iisph\"\n{MINIMAL}");
+    assert_rejected(&text, "solver", "unknown key `solver`");
+}
+
+#[test]
+fn unknown_nested_key_names_the_entry_and_suggests_the_right_one() {
+    let mut text = MINIMAL.to_string();
+    text.push_str(
+        "\n[[fluid]]\nbox = { min = [0.3, 0.0, 0.0], max = [0.4, 0.1, 0.1] }\n\
+         fractions = { water = 1.0 }\nveloctiy = [1.0, 0.0, 0.0]\n",
+    );
+    assert_rejected(&text, "fluid[1].veloctiy", "did you mean `velocity`?");
+}
+
+#[test]
+fn unknown_key_inside_a_shape() {
+    let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, 0.4, 0.1], size = 2");
+    assert_rejected(&text, "fluid[0].box.size", "unknown key `size`");
+}
+
+#[test]
+fn unknown_key_in_simulation() {
+    let text = edited("max_dt = 0.002", "max_dt = 0.002\ntime_step = 0.001");
+    assert_rejected(
+        &text,
+        "simulation.time_step",
+        "allowed here: particle_spacing",
+    );
+}
+
+#[test]
+fn missing_required_key() {
+    let text = edited("end_time = 1.0\n", "");
+    assert_rejected(
+        &text,
+        "simulation.end_time",
+        "missing required key `end_time`",
+    );
+}
+
+#[test]
+fn missing_simulation_table() {
+    let text = edited(
+        "[simulation]\nparticle_spacing = 0.01\nend_time = 1.0\nmax_dt = 0.002\n",
+        "",
+    );
+    assert_rejected(&text, "simulation", "missing the required [simulation]");
+}
+
+#[test]
+fn missing_fractions() {
+    let text = edited("fractions = { water = 1.0 }\n", "");
+    assert_rejected(
+        &text,
+        "fluid[0].fractions",
+        "missing required key `fractions`",
+    );
+}
+
+#[test]
+fn wrong_type_string_for_number() {
+    let text = edited("density = 1000.0", "density = \"1000\"");
+    assert_rejected(
+        &text,
+        "phase[0].density",
+        "expected the rest density in kg/m^3 (a number), found the string \"1000\"",
+    );
+}
+
+#[test]
+fn wrong_type_for_boolean() {
+    let text = edited("container = true", "container = \"yes\"");
+    assert_rejected(&text, "wall[0].container", "expected true or false");
+}
+
+#[test]
+fn wrong_type_float_for_integer() {
+    let text = edited("max_dt = 0.002", "max_dt = 0.002\nmax_iterations = 10.5");
+    assert_rejected(&text, "simulation.max_iterations", "an integer");
+}
+
+#[test]
+fn wrong_array_length() {
+    let text = edited("velocity = [0.0, 0.0, 0.0]", "velocity = [0.0, 0.0]");
+    assert_rejected(
+        &text,
+        "fluid[0].velocity",
+        "array of 3 numbers [x, y, z], found an array of 2 elements",
+    );
+}
+
+#[test]
+fn wrong_element_type_in_array() {
+    let text = edited("velocity = [0.0, 0.0, 0.0]", "velocity = [0.0, true, 0.0]");
+    assert_rejected(&text, "fluid[0].velocity[1]", "found the boolean true");
+}
+
+#[test]
+fn nan_is_rejected() {
+    let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, nan, 0.1]");
+    assert_rejected(
+        &text,
+        "fluid[0].box.max[1]",
+        "expected a finite number, found nan",
+    );
+}
+
+#[test]
+fn infinity_is_rejected() {
+    let text = edited("end_time = 1.0", "end_time = inf");
+    assert_rejected(&text, "simulation.end_time", "found inf");
+}
+
+#[test]
+fn negative_spacing() {
+    let text = edited("particle_spacing = 0.01", "particle_spacing = -0.01");
+    assert_rejected(&text, "simulation.particle_spacing", "> 0, found -0.01");
+}
+
+#[test]
+fn spacing_that_underflows_single_precision() {
+    let text = edited("particle_spacing = 0.01", "particle_spacing = 1e-60");
+    assert_rejected(&text, "simulation.particle_spacing", "> 0, found");
+}
+
+#[test]
+fn max_dt_beyond_end_time() {
+    let text = edited("max_dt = 0.002", "max_dt = 2.0");
+    assert_rejected(&text, "simulation.max_dt", "max_dt <= end_time");
+}
+
+#[test]
+fn out_of_range_settings() {
+    let cases = [
+        (
+            "max_density_error = 0.5",
+            "simulation.max_density_error",
+            "in (0, 0.1]",
+        ),
+        (
+            "cfl_number = 0.0",
+            "simulation.cfl_number",
+            "in (0, 1], found 0",
+        ),
+        ("omega = 1.5", "simulation.omega", "in (0, 1], found 1.5"),
+        (
+            "min_iterations = 0",
+            "simulation.min_iterations",
+            "integer >= 1), found 0",
+        ),
+        (
+            "frame_interval = -1",
+            "simulation.frame_interval",
+            "> 0, found -1",
+        ),
+        (
+            "min_iterations = 200",
+            "simulation.min_iterations",
+            "max_iterations >= min_iterations",
+        ),
+        (
+            "gravity = [0, \"down\", 0]",
+            "simulation.gravity[1]",
+            "found the string \"down\"",
+        ),
+    ];
+    for (line, key, fragment) in cases {
+        let text = edited("max_dt = 0.002", &format!("max_dt = 0.002\n{line}"));
+        assert_rejected(&text, key, fragment);
+    }
+    let text = edited("viscosity = 0.01", "viscosity = -0.01");
+    assert_rejected(&text, "phase[0].viscosity", ">= 0, found -0.01");
+    let text = edited(
+        "viscosity = 0.01",
+        "viscosity = 0.01\ncolor = [0.5, 1.2, 0.0]",
+    );
+    assert_rejected(&text, "phase[0].color[1]", "in [0, 1], found 1.2");
+}
+
+#[test]
+fn box_min_not_below_max() {
+    let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, 0.0, 0.1]");
+    assert_rejected(
+        &text,
+        "fluid[0].box",
+        "expected min < max on every axis, found min = 0 >= max = 0 on the y axis",
+    );
+}
+
+#[test]
+fn box_thinner_than_half_a_spacing() {
+    let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, 0.4, 0.004]");
+    assert_rejected(&text, "fluid[0].box", "would hold no particles");
+}
+
+#[test]
+fn sphere_and_cylinder_sizes() {
+    let text = edited(
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
+        "sphere = { center = [0.1, 0.1, 0.1], radius = 0.0 }\nfractions",
+    );
+    assert_rejected(
+        &text,
+        "fluid[0].sphere.radius",
+        "the radius in m > 0, found 0",
+    );
+    let text = edited(
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
+        "cylinder = { base = [0.1, 0.1, 0.1], axis = [0, 0, 0], radius = 0.1, height = 0.1 }\nfractions",
+    );
+    assert_rejected(&text, "fluid[0].cylinder.axis", "non-zero direction");
+    let text = edited(
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
+        "cylinder = { base = [0.1, 0.1, 0.1], axis = [0, 1, 0], radius = 0.1 }\nfractions",
+    );
+    assert_rejected(
+        &text,
+        "fluid[0].cylinder.height",
+        "missing required key `height`",
+    );
+}
+
+#[test]
+fn shapes_in_the_wrong_unit_are_rejected() {
+    // A 800 mm tank written in mm with a spacing in m: 8e10 lattice cells.
+    let text = edited("max = [0.8, 0.6, 0.1]", "max = [800, 600, 100]");
+    assert_rejected(&text, "wall[0].box", "are the lengths in m?");
+}
+
+#[test]
+fn no_shape_or_two_shapes() {
+    let text = edited(
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\n",
+        "",
+    );
+    assert_rejected(&text, "fluid[0]", "exactly one shape");
+    let text = edited(
+        "container = true",
+        "container = true\nsphere = { center = [0.0, 0.0, 0.0], radius = 1.0 }",
+    );
+    assert_rejected(&text, "wall[0]", "found both `box` and `sphere`");
+}
+
+#[test]
+fn fractions_not_summing_to_one() {
+    let text = edited("fractions = { water = 1.0 }", "fractions = { water = 0.9 }");
+    assert_rejected(&text, "fluid[0].fractions", "sum to 1");
+}
+
+#[test]
+fn fraction_out_of_range() {
+    let text = edited("fractions = { water = 1.0 }", "fractions = { water = 1.5 }");
+    assert_rejected(&text, "fluid[0].fractions.water", "in [0, 1], found 1.5");
+}
+
+#[test]
+fn unknown_phase_in_fractions() {
+    let text = edited("fractions = { water = 1.0 }", "fractions = { watr = 1.0 }");
+    assert_rejected(
+        &text,
+        "fluid[0].fractions.watr",
+        "unknown phase `watr`; the phases are: water",
+    );
+}
+
+#[test]
+fn duplicate_phase_name() {
+    let text = format!("{MINIMAL}\n[[phase]]\nname = \"water\"\ndensity = 1.0\nviscosity = 0.0\n");
+    assert_rejected(&text, "phase[1].name", "duplicate phase name \"water\"");
+}
+
+#[test]
+fn bad_phase_names() {
+    let text = edited("name = \"water\"", "name = \"\"");
+    assert_rejected(&text, "phase[0].name", "found an empty string");
+    let text = edited("name = \"water\"", "name = \"sea water\"");
+    assert_rejected(&text, "phase[0].name", "contains ' '");
+}
+
+#[test]
+fn no_phases() {
+    let text = edited(
+        "[[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.01\n",
+        "",
+    );
+    assert_rejected(&text, "phase", "at least one [[phase]]");
+}
+
+#[test]
+fn phase_as_a_single_table() {
+    let text = edited("[[phase]]", "[phase]");
+    assert_rejected(&text, "phase", "write [[phase]]");
+}
+
+#[test]
+fn container_on_a_sphere() {
+    let text = format!(
+        "{MINIMAL}\n[[wall]]\nsphere = {{ center = [0.4, 0.3, 0.05], radius = 0.1 }}\ncontainer = true\n"
+    );
+    assert_rejected(
+        &text,
+        "wall[1].container",
+        "only allowed with a box, found a sphere",
+    );
+}
+
+#[test]
+fn open_top_without_container() {
+    let text = edited("container = true", "open_top = true");
+    assert_rejected(
+        &text,
+        "wall[0].open_top",
+        "only allowed with container = true",
+    );
+}
+
+#[test]
+fn toml_syntax_error_gives_line_and_column() {
+    let text = edited("end_time = 1.0", "end_time = = 1.0");
+    // MINIMAL starts with a newline: `end_time` is on line 4.
+    assert_rejected(&text, "", "line 4, column 12");
+    let e = parse(&text).unwrap_err();
+    assert!(e.reason.contains("TOML syntax error"), "{e}");
+    assert!(e.reason.contains("end_time = = 1.0"), "{e}");
+}
+
+#[test]
+fn duplicate_key_is_a_syntax_error() {
+    let text = edited("end_time = 1.0", "end_time = 1.0\nend_time = 2.0");
+    assert_rejected(&text, "", "line 5");
+}
+
+#[test]
+fn empty_file() {
+    assert_rejected("", "", "empty");
+    assert_rejected("  \n# only a comment\n\n", "", "[simulation]");
+}
+
+#[test]
+fn nonexistent_file() {
+    let path = Path::new("/nonexistent/porosph/scene.toml");
+    let e = Scene::from_file(path).unwrap_err();
+    assert_eq!(e.file, "/nonexistent/porosph/scene.toml");
+    assert_eq!(e.key, "");
+    assert!(e.reason.contains("cannot read the scene file"), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("/nonexistent/porosph/scene.toml: "),
+        "{e}"
+    );
+}
+
+#[test]
+fn file_that_is_not_utf8() {
+    let dir = std::env::temp_dir().join(format!("porosph-scene-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("latin1.toml");
+    std::fs::write(&path, b"[simulation]\n# caf\xe9\n").unwrap();
+    let e = Scene::from_file(&path).unwrap_err();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(e.reason.contains("UTF-8"), "{e}");
+}
+
+#[test]
+fn valid_file_round_trips_through_from_file() {
+    let dir = std::env::temp_dir().join(format!("porosph-scene-ok-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("full.toml");
+    std::fs::write(&path, FULL).unwrap();
+    let scene = Scene::from_file(&path);
+    std::fs::remove_dir_all(&dir).ok();
+    let scene = scene.expect("valid scene");
+    assert_eq!(scene.origin, path.display().to_string());
+    assert_eq!(scene.text, FULL);
+}
+
+/// Deterministic 64-bit LCG (Knuth's MMIX constants).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        self.0 >> 33
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+#[test]
+fn random_mutations_never_panic() {
+    // Bytes that are likely to make interesting TOML: structure, digits, signs,
+    // exponents, quotes, newlines, and a non-ASCII byte.
+    const ALPHABET: &[u8] = b"[]{}=,.\"'#\n -+0123456789eE_abinfxz \t\\\xc3";
+    let base = FULL.as_bytes();
+    let mut rng = Lcg(0x5eed_f00d);
+    let mut accepted = 0;
+    for round in 0..2000 {
+        let mut bytes = base.to_vec();
+        match rng.below(4) {
+            0 => bytes.truncate(rng.below(base.len())),
+            1 => {
+                let at = rng.below(bytes.len());
+                bytes.remove(at);
+            }
+            2 => {
+                let at = rng.below(bytes.len());
+                bytes.insert(at, ALPHABET[rng.below(ALPHABET.len())]);
+            }
+            _ => {
+                let at = rng.below(bytes.len());
+                bytes[at] = ALPHABET[rng.below(ALPHABET.len())];
+            }
+        }
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let result = std::panic::catch_unwind(|| parse(&text));
+        match result {
+            Ok(Ok(_)) => accepted += 1,
+            Ok(Err(e)) => assert!(!e.reason.is_empty(), "round {round}: empty reason"),
+            Err(_) => panic!("round {round}: the parser panicked on:\n{text}"),
+        }
+    }
+    // Mutations inside comments, whitespace and digits often keep the scene valid.
+    assert!(
+        accepted > 0 && accepted < 2000,
+        "accepted {accepted} of 2000"
+    );
+}
