@@ -10,7 +10,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "porosph", version, about = "Multiple fluids through porous, deformable solids, one particle system")]
+#[command(
+    name = "porosph",
+    version,
+    about = "Multiple fluids through porous, deformable solids, one particle system"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -57,14 +61,19 @@ fn load_scene(arg: Option<&str>) -> Result<Scene, String> {
         return Scene::from_file(path).map_err(|e| e.to_string());
     }
     if let Some(b) = builtin::find(name) {
-        return Scene::from_toml_str(b.text, &format!("<built-in {}>", b.name)).map_err(|e| e.to_string());
+        return Scene::from_toml_str(b.text, &format!("<built-in {}>", b.name))
+            .map_err(|e| e.to_string());
     }
-    Err(format!("{name}: no such file, and not a built-in scene (see `porosph scenes`)"))
+    Err(format!(
+        "{name}: no such file, and not a built-in scene (see `porosph scenes`)"
+    ))
 }
 
 fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
     match v {
-        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("--{name} must be a positive number of seconds, got {x}")),
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!(
+            "--{name} must be a positive number of seconds, got {x}"
+        )),
         _ => Ok(()),
     }
 }
@@ -72,7 +81,15 @@ fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scene, out, threads, until, steps, frame_every, quiet } => (|| {
+        Command::Run {
+            scene,
+            out,
+            threads,
+            until,
+            steps,
+            frame_every,
+            quiet,
+        } => (|| {
             positive("until", until)?;
             positive("frame-every", frame_every)?;
             if threads == Some(0) {
@@ -83,7 +100,9 @@ fn main() -> ExitCode {
             if let Some(t) = threads {
                 b = b.num_threads(t);
             }
-            let pool = b.build().map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
+            let pool = b
+                .build()
+                .map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
             pool.install(|| {
                 let origin = scene.origin.clone();
                 let mut sim = Simulation::new(scene);
@@ -118,12 +137,18 @@ fn main() -> ExitCode {
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {
-                let mark = if b.name == builtin::DEFAULT { " (default)" } else { "" };
+                let mark = if b.name == builtin::DEFAULT {
+                    " (default)"
+                } else {
+                    ""
+                };
                 println!("  {:<16} {}{}", b.name, b.description, mark);
             }
             if let Ok(rd) = std::fs::read_dir("scenes") {
-                let mut files: Vec<PathBuf> =
-                    rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
+                let mut files: Vec<PathBuf> = rd
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+                    .collect();
                 files.sort();
                 if !files.is_empty() {
                     println!("example scenes in ./scenes (porosph run FILE):");
@@ -134,7 +159,9 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
-        Command::Inspect { file } => inspect_frame(&file).map(|s| print!("{s}")).map_err(|e| e.to_string()),
+        Command::Inspect { file } => inspect_frame(&file)
+            .map(|s| print!("{s}"))
+            .map_err(|e| e.to_string()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

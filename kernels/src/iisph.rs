@@ -39,7 +39,7 @@ pub fn fluid_volumes(
     sigma
         .par_chunks_mut(BLOCK)
         .zip(vol.par_chunks_mut(BLOCK))
-        .zip(ff.blocks.par_iter().zip(fb.blocks.par_iter()))
+        .zip(ff.used().par_iter().zip(fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, ((sig, v), (bf, bb)))| {
             for q in 0..sig.len() {
@@ -66,7 +66,7 @@ pub fn wall_volumes(
     sigma
         .par_chunks_mut(BLOCK)
         .zip(vol.par_chunks_mut(BLOCK))
-        .zip(bf.blocks.par_iter())
+        .zip(bf.used().par_iter())
         .enumerate()
         .for_each(|(b, ((sig, v), blk))| {
             for q in 0..sig.len() {
@@ -95,7 +95,7 @@ fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) ->
 /// like the lists) and V_j from `vol_t` (target side).
 pub fn scale_by_pair_volume(lists: &mut PairLists, vol_q: &[f32], vol_t: &[f32]) {
     lists
-        .blocks
+        .used_mut()
         .par_iter_mut()
         .enumerate()
         .for_each(|(b, blk)| {
@@ -149,7 +149,7 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
     source
         .par_chunks_mut(BLOCK)
         .zip(diag.par_chunks_mut(BLOCK))
-        .zip(rows.ff.blocks.par_iter().zip(rows.fb.blocks.par_iter()))
+        .zip(rows.ff.used().par_iter().zip(rows.fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, ((src, dg), (bf, bb)))| {
             for q in 0..src.len() {
@@ -232,7 +232,7 @@ pub fn wall_source_diagonal(
     source
         .par_chunks_mut(BLOCK)
         .zip(diag.par_chunks_mut(BLOCK))
-        .zip(bf.blocks.par_iter())
+        .zip(bf.used().par_iter())
         .enumerate()
         .for_each(|(b, ((src, dg), blk))| {
             for q in 0..src.len() {
@@ -278,7 +278,7 @@ pub fn pressure_acceleration(
     ax.par_chunks_mut(BLOCK)
         .zip(ay.par_chunks_mut(BLOCK))
         .zip(az.par_chunks_mut(BLOCK))
-        .zip(ff.blocks.par_iter().zip(fb.blocks.par_iter()))
+        .zip(ff.used().par_iter().zip(fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, (((ox, oy), oz), (bf, bb)))| {
             for q in 0..ox.len() {
@@ -333,7 +333,7 @@ pub fn fluid_jacobi(
     let dt2 = dt * dt;
     p.par_chunks_mut(BLOCK)
         .zip(err.par_chunks_mut(BLOCK))
-        .zip(ff.blocks.par_iter().zip(fb.blocks.par_iter()))
+        .zip(ff.used().par_iter().zip(fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, ((pp, ee), (bf, bb)))| {
             for q in 0..pp.len() {
@@ -386,7 +386,7 @@ pub fn wall_jacobi(
 ) {
     let dt2 = dt * dt;
     p.par_chunks_mut(BLOCK)
-        .zip(bf.blocks.par_iter())
+        .zip(bf.used().par_iter())
         .enumerate()
         .for_each(|(b, (pp, blk))| {
             for q in 0..pp.len() {

@@ -64,9 +64,22 @@ pub struct PairLists {
 }
 
 impl PairLists {
+    /// The blocks in use (the vector keeps more when the query set shrank).
+    #[inline]
+    pub fn used(&self) -> &[PairBlock] {
+        &self.blocks[..self.n.div_ceil(BLOCK)]
+    }
+
+    /// The blocks in use, mutably.
+    #[inline]
+    pub fn used_mut(&mut self) -> &mut [PairBlock] {
+        let nb = self.n.div_ceil(BLOCK);
+        &mut self.blocks[..nb]
+    }
+
     /// Total number of pairs.
     pub fn pairs(&self) -> usize {
-        self.blocks.iter().map(|b| b.len()).sum()
+        self.used().iter().map(|b| b.len()).sum()
     }
 
     /// Bytes held (capacity) by the lists.

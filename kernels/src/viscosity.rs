@@ -35,7 +35,7 @@ pub fn predict_velocity(inp: &ViscosityInput, ux: &mut [f32], uy: &mut [f32], uz
     ux.par_chunks_mut(BLOCK)
         .zip(uy.par_chunks_mut(BLOCK))
         .zip(uz.par_chunks_mut(BLOCK))
-        .zip(inp.ff.blocks.par_iter())
+        .zip(inp.ff.used().par_iter())
         .enumerate()
         .for_each(|(b, (((ox, oy), oz), blk))| {
             for q in 0..ox.len() {

@@ -5,6 +5,7 @@ use super::{Params, Simulation, StepStats, Workspace};
 use crate::scene::{sample_fluid, sample_walls, Scene};
 use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
+use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
@@ -71,11 +72,8 @@ impl Simulation {
             walls.y.push(p[1]);
             walls.z.push(p[2]);
         }
-        // Walls are sampled on the particle lattice (scene::geometry), so
-        // each wall particle stands for one lattice cell, h^3, exactly like
-        // a fluid particle: the smoothed volume fraction sum_j V0_j W_ij is
-        // then 1 at a flat wall with fluid at rest, on both sides of it.
-        walls.rest_volume = vec![params.cell_volume(); nw];
+        // Rest volumes are set below, once the wall neighbours are known.
+        walls.rest_volume = vec![0.0; nw];
         walls.pressure = vec![0.0; nw];
         walls.density = vec![0.0; nw];
         walls.sigma_static = vec![0.0; nw];
@@ -97,9 +95,30 @@ impl Simulation {
             z: &walls.z,
         };
         build_pairs(&mut bb, pts, pts, &work.wall_grid, &params.kernel);
-        for (b, blk) in bb.blocks.iter().enumerate() {
+        // Rest volume of a wall particle (PHYSICS.md §2.3, Akinci-style):
+        // V0_b = gamma / sum_{b'} W_bb' over the wall (incl. self), with gamma
+        // the value of d^3 sum W over a flat wall of two lattice layers. So
+        // V0_b = d^3 exactly on a flat wall (where the wall stands for the
+        // missing fluid lattice), less in corners, more at convex edges; and
+        // sum_b' V0_b' W_bb' ~ gamma < 1 everywhere, so a wall row only
+        // resists compression by fluid, never by its own sampling.
+        let gamma = flat_wall_gamma(&params.kernel, params.h);
+        let mut sum_w = vec![0.0f32; nw];
+        for (b, blk) in bb.used().iter().enumerate() {
             for q in 0..blk.start.len().saturating_sub(1) {
-                let i = b * porosph_kernels::blocks::BLOCK + q;
+                sum_w[b * BLOCK + q] = blk.range(q).map(|p| blk.w[p]).sum();
+            }
+        }
+        for (v, s) in walls.rest_volume.iter_mut().zip(&sum_w) {
+            *v = if *s > 0.0 {
+                gamma / s
+            } else {
+                params.cell_volume()
+            };
+        }
+        for (b, blk) in bb.used().iter().enumerate() {
+            for q in 0..blk.start.len().saturating_sub(1) {
+                let i = b * BLOCK + q;
                 walls.sigma_static[i] = blk
                     .range(q)
                     .map(|p| walls.rest_volume[blk.j[p] as usize] * blk.w[p])
@@ -127,4 +146,20 @@ impl Simulation {
         sim.dt = sim.next_dt(v0);
         sim
     }
+}
+
+/// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of two
+/// lattice layers (its own layer and the one behind it), spacing d = `h`.
+/// About 0.725 for the cubic spline with H = 2d.
+pub fn flat_wall_gamma(kernel: &CubicSpline, h: f32) -> f32 {
+    let mut s = 0.0f64;
+    for c in [0i32, -1] {
+        for a in -3i32..=3 {
+            for b in -3i32..=3 {
+                let r = h * ((a * a + b * b + c * c) as f32).sqrt();
+                s += kernel.w(r) as f64;
+            }
+        }
+    }
+    (s * (h as f64).powi(3)) as f32
 }
