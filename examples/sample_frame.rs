@@ -36,29 +36,12 @@ fn main() -> ExitCode {
     let frame = Frame {
         time: 0.25,
         step: 7,
-        points: (0..n)
-            .map(|i| [i as f32 * 1e-3, -(i as f32) * 0.25, 1.0 / (i as f32 + 3.0)])
-            .collect(),
+        points: (0..n).map(|i| [i as f32 * 1e-3, -(i as f32) * 0.25, 1.0 / (i as f32 + 3.0)]).collect(),
         arrays: vec![
-            array(
-                "velocity",
-                "m/s",
-                3,
-                ArrayData::F32((0..3 * n).map(|k| (k as f32).sin() * 1e-3).collect()),
-            ),
-            array(
-                "density",
-                "kg/m^3",
-                1,
-                ArrayData::F32((0..n).map(|i| 1000.0 + 0.5 * i as f32).collect()),
-            ),
+            array("velocity", "m/s", 3, ArrayData::F32((0..3 * n).map(|k| (k as f32).sin() * 1e-3).collect())),
+            array("density", "kg/m^3", 1, ArrayData::F32((0..n).map(|i| 1000.0 + 0.5 * i as f32).collect())),
             array("id", "", 1, ArrayData::U32((0..n as u32).collect())),
-            array(
-                "kind",
-                "",
-                1,
-                ArrayData::U8((0..n).map(|i| (i % 3) as u8).collect()),
-            ),
+            array("kind", "", 1, ArrayData::U8((0..n).map(|i| (i % 3) as u8).collect())),
         ],
     };
     let result = write_frame(&out, &frame).and_then(|()| inspect_frame(&out));

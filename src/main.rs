@@ -10,11 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(
-    name = "porosph",
-    version,
-    about = "Multiple fluids through porous, deformable solids, one particle system"
-)]
+#[command(name = "porosph", version, about = "Multiple fluids through porous, deformable solids, one particle system")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -61,19 +57,16 @@ fn load_scene(arg: Option<&str>) -> Result<Scene, String> {
         return Scene::from_file(path).map_err(|e| e.to_string());
     }
     if let Some(b) = builtin::find(name) {
-        return Scene::from_toml_str(b.text, &format!("<built-in {}>", b.name))
-            .map_err(|e| e.to_string());
+        return Scene::from_toml_str(b.text, &format!("<built-in {}>", b.name)).map_err(|e| e.to_string());
     }
-    Err(format!(
-        "{name}: no such file, and not a built-in scene (see `porosph scenes`)"
-    ))
+    Err(format!("{name}: no such file, and not a built-in scene (see `porosph scenes`)"))
 }
 
 fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
     match v {
-        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!(
-            "--{name} must be a positive number of seconds, got {x}"
-        )),
+        Some(x) if !(x.is_finite() && x > 0.0) => {
+            Err(format!("--{name} must be a positive number of seconds, got {x}"))
+        }
         _ => Ok(()),
     }
 }
@@ -81,15 +74,7 @@ fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run {
-            scene,
-            out,
-            threads,
-            until,
-            steps,
-            frame_every,
-            quiet,
-        } => (|| {
+        Command::Run { scene, out, threads, until, steps, frame_every, quiet } => (|| {
             positive("until", until)?;
             positive("frame-every", frame_every)?;
             if threads == Some(0) {
@@ -100,9 +85,7 @@ fn main() -> ExitCode {
             if let Some(t) = threads {
                 b = b.num_threads(t);
             }
-            let pool = b
-                .build()
-                .map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
+            let pool = b.build().map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
             pool.install(|| {
                 let origin = scene.origin.clone();
                 let mut sim = Simulation::new(scene);
@@ -137,11 +120,7 @@ fn main() -> ExitCode {
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {
-                let mark = if b.name == builtin::DEFAULT {
-                    " (default)"
-                } else {
-                    ""
-                };
+                let mark = if b.name == builtin::DEFAULT { " (default)" } else { "" };
                 println!("  {:<16} {}{}", b.name, b.description, mark);
             }
             if let Ok(rd) = std::fs::read_dir("scenes") {
@@ -159,9 +138,7 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
-        Command::Inspect { file } => inspect_frame(&file)
-            .map(|s| print!("{s}"))
-            .map_err(|e| e.to_string()),
+        Command::Inspect { file } => inspect_frame(&file).map(|s| print!("{s}")).map_err(|e| e.to_string()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -76,11 +76,7 @@ open_top = true
         sim.fluid.len(),
         100.0 * worst
     );
-    assert!(
-        worst <= 0.10,
-        "surge front off Martin & Moyce by {:.1} %",
-        100.0 * worst
-    );
+    assert!(worst <= 0.10, "surge front off Martin & Moyce by {:.1} %", 100.0 * worst);
 }
 
 /// Leading edge of the surge: the largest x of a fluid particle plus half a

@@ -1,9 +1,7 @@
 //! Frame files (VTKHDF) and the series index: what is written reads back
 //! exactly, writes are atomic, and bad files give errors, not panics.
 
-use porosph::io::{
-    inspect_frame, read_frame, write_frame, ArrayData, Frame, PointArray, SeriesWriter,
-};
+use porosph::io::{inspect_frame, read_frame, write_frame, ArrayData, Frame, PointArray, SeriesWriter};
 use std::fs;
 use std::path::PathBuf;
 
@@ -12,8 +10,7 @@ struct TempDir(PathBuf);
 
 impl TempDir {
     fn new(test: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("porosph-frames-{}-{test}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("porosph-frames-{}-{test}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).expect("create temp dir");
         Self(dir)
@@ -33,46 +30,20 @@ impl Drop for TempDir {
 /// A frame of `n` points with f32 (1 and 3 components), u32 and u8 arrays;
 /// values are deterministic and include awkward floats.
 fn sample_frame(n: usize) -> Frame {
-    let points = (0..n)
-        .map(|i| [i as f32 * 1e-3, -(i as f32) * 0.25, 1.0 / (i as f32 + 3.0)])
-        .collect();
+    let points = (0..n).map(|i| [i as f32 * 1e-3, -(i as f32) * 0.25, 1.0 / (i as f32 + 3.0)]).collect();
     let velocity = (0..n * 3).map(|k| (k as f32).sin() * 1e-7).collect();
-    let density = (0..n)
-        .map(|i| 1000.0 + i as f32 * 0.1 + f32::EPSILON)
-        .collect();
-    let id = (0..n)
-        .map(|i| (i as u32).wrapping_mul(2_654_435_761))
-        .collect();
+    let density = (0..n).map(|i| 1000.0 + i as f32 * 0.1 + f32::EPSILON).collect();
+    let id = (0..n).map(|i| (i as u32).wrapping_mul(2_654_435_761)).collect();
     let kind = (0..n).map(|i| (i % 3) as u8).collect();
     Frame {
         time: 0.1 + 0.2,
         step: 12_345,
         points,
         arrays: vec![
-            PointArray {
-                name: "velocity".into(),
-                unit: "m/s".into(),
-                components: 3,
-                data: ArrayData::F32(velocity),
-            },
-            PointArray {
-                name: "density".into(),
-                unit: "kg/m³".into(),
-                components: 1,
-                data: ArrayData::F32(density),
-            },
-            PointArray {
-                name: "id".into(),
-                unit: "".into(),
-                components: 1,
-                data: ArrayData::U32(id),
-            },
-            PointArray {
-                name: "kind".into(),
-                unit: "".into(),
-                components: 1,
-                data: ArrayData::U8(kind),
-            },
+            PointArray { name: "velocity".into(), unit: "m/s".into(), components: 3, data: ArrayData::F32(velocity) },
+            PointArray { name: "density".into(), unit: "kg/m³".into(), components: 1, data: ArrayData::F32(density) },
+            PointArray { name: "id".into(), unit: "".into(), components: 1, data: ArrayData::U32(id) },
+            PointArray { name: "kind".into(), unit: "".into(), components: 1, data: ArrayData::U8(kind) },
         ],
     }
 }
@@ -88,10 +59,7 @@ fn assert_round_trip(n: usize) {
     assert_eq!(back.step, frame.step);
     let bits = |p: &[[f32; 3]]| p.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&back.points), bits(&frame.points));
-    assert_eq!(
-        back, frame,
-        "arrays, names, units, order and components survive"
-    );
+    assert_eq!(back, frame, "arrays, names, units, order and components survive");
 }
 
 #[test]
@@ -195,15 +163,7 @@ fn inspect_summarizes_time_step_arrays_and_kinds() {
     let path = dir.path("frame.vtkhdf");
     write_frame(&path, &sample_frame(10)).expect("write");
     let text = inspect_frame(&path).expect("inspect");
-    for needle in [
-        "points: 10",
-        "step:   12345",
-        "velocity",
-        "m/s",
-        "density",
-        "kg/m³",
-        "fluid 4, solid 3, wall 3",
-    ] {
+    for needle in ["points: 10", "step:   12345", "velocity", "m/s", "density", "kg/m³", "fluid 4, solid 3, wall 3"] {
         assert!(text.contains(needle), "missing {needle:?} in\n{text}");
     }
 }
@@ -216,9 +176,7 @@ fn series_file_after_three_adds_lists_them_in_order() {
     assert!(!path.exists(), "nothing written before the first add");
     series.add("frame_00000.vtkhdf", 0.0).expect("add 0");
     series.add("frame_00001.vtkhdf", 0.1).expect("add 1");
-    series
-        .add("frame_\"2\".vtkhdf", 0.30000000000000004)
-        .expect("add 2");
+    series.add("frame_\"2\".vtkhdf", 0.30000000000000004).expect("add 2");
     let text = fs::read_to_string(&path).expect("read series");
     let expected = "{\n  \"file-series-version\" : \"1.0\",\n  \"files\" : [\n    \
         { \"name\" : \"frame_00000.vtkhdf\", \"time\" : 0.0 },\n    \
@@ -229,38 +187,21 @@ fn series_file_after_three_adds_lists_them_in_order() {
         .expect("list")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
         .collect();
-    assert_eq!(
-        names,
-        vec!["frames.vtkhdf.series".to_string()],
-        "no temporary file left"
-    );
+    assert_eq!(names, vec!["frames.vtkhdf.series".to_string()], "no temporary file left");
 
     let mut resumed = SeriesWriter::open_existing(&path).expect("reopen");
     assert_eq!(resumed.entries(), series.entries());
-    resumed
-        .add("frame_00003.vtkhdf", 0.4)
-        .expect("add after resume");
-    assert_eq!(
-        SeriesWriter::open_existing(&path)
-            .expect("reopen")
-            .entries()
-            .len(),
-        4
-    );
+    resumed.add("frame_00003.vtkhdf", 0.4).expect("add after resume");
+    assert_eq!(SeriesWriter::open_existing(&path).expect("reopen").entries().len(), 4);
 }
 
 #[test]
 fn series_open_existing_tolerates_missing_and_rejects_junk() {
     let dir = TempDir::new("series-junk");
     let missing = dir.path("frames.vtkhdf.series");
-    assert!(SeriesWriter::open_existing(&missing)
-        .expect("missing is empty")
-        .entries()
-        .is_empty());
+    assert!(SeriesWriter::open_existing(&missing).expect("missing is empty").entries().is_empty());
     fs::write(&missing, "{\"files\": [ {\"name\": \"a\", ").expect("write junk");
-    let err = SeriesWriter::open_existing(&missing)
-        .err()
-        .expect("junk must not load");
+    let err = SeriesWriter::open_existing(&missing).err().expect("junk must not load");
     assert_eq!(err.path, missing);
 }
 

@@ -24,11 +24,7 @@ fn pressure_is_rho_g_depth_after_one_second() {
     let mut worst = 0.0f32;
     while sim.time < 1.0 - 1e-9 {
         let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
-        assert!(
-            st.iterations < max_it,
-            "pressure solve hit the iteration cap at t = {}",
-            sim.time
-        );
+        assert!(st.iterations < max_it, "pressure solve hit the iteration cap at t = {}", sim.time);
         worst = worst.max(st.density_error);
     }
     assert!(worst <= target);
@@ -40,10 +36,7 @@ fn pressure_is_rho_g_depth_after_one_second() {
     // Mean density error as IISPH measures it (SPlisHSPlasH's
     // avg_density_err): the mean compression max(rho/rho0 - 1, 0) over all
     // fluid particles, here from the densities after the step.
-    let density_err = (0..f.len())
-        .map(|i| (f.density[i] / rho0 - 1.0).max(0.0) as f64)
-        .sum::<f64>()
-        / f.len() as f64;
+    let density_err = (0..f.len()).map(|i| (f.density[i] / rho0 - 1.0).max(0.0) as f64).sum::<f64>() / f.len() as f64;
     let (mut sp, mut sref, mut sabs) = (0.0f64, 0.0f64, 0.0f64);
     for &i in &deep {
         let p_ref = (rho0 * g * (fill - f.y[i])) as f64;
@@ -69,17 +62,9 @@ fn pressure_is_rho_g_depth_after_one_second() {
         worst,
         sim.last.max_speed
     );
-    assert!(
-        mean_err < 0.02,
-        "mean pressure off by {:.2} %",
-        100.0 * mean_err
-    );
+    assert!(mean_err < 0.02, "mean pressure off by {:.2} %", 100.0 * mean_err);
     // The solver stops on its linearised prediction of the compression; the
     // compression measured after the step may exceed it by the
     // linearisation error, which we bound at half the target.
-    assert!(
-        density_err <= 1.5 * target as f64,
-        "mean density error {:.4} %",
-        100.0 * density_err
-    );
+    assert!(density_err <= 1.5 * target as f64, "mean density error {:.4} %", 100.0 * density_err);
 }

@@ -87,10 +87,7 @@ fn assert_rejected(text: &str, key: &str, fragment: &str) {
         Err(e) => {
             assert_eq!(e.file, "test.toml");
             assert_eq!(e.key, key, "wrong key; the error was: {e}");
-            assert!(
-                e.reason.contains(fragment),
-                "reason lacks `{fragment}`: {e}"
-            );
+            assert!(e.reason.contains(fragment), "reason lacks `{fragment}`: {e}");
         }
     }
 }
@@ -114,35 +111,16 @@ fn full_scene_parses_with_its_values() {
     assert_eq!(scene.phases[0].name, "water");
     assert_eq!(scene.phases[0].color, [0.1, 0.2, 0.9]);
     assert_eq!(scene.phases[1].name, "oil-2");
-    assert_eq!(
-        scene.phases[1].density, 800.0,
-        "integers are accepted as numbers"
-    );
+    assert_eq!(scene.phases[1].density, 800.0, "integers are accepted as numbers");
     assert_eq!(scene.phases[1].viscosity, 0.05);
     assert_ne!(scene.phases[1].color, scene.phases[0].color);
 
     assert_eq!(scene.fluids.len(), 2);
-    assert_eq!(
-        scene.fluids[0].shape,
-        Shape::Box {
-            min: [0.0, 0.0, 0.0],
-            max: [0.2, 0.4, 0.1]
-        }
-    );
+    assert_eq!(scene.fluids[0].shape, Shape::Box { min: [0.0, 0.0, 0.0], max: [0.2, 0.4, 0.1] });
     assert_eq!(scene.fluids[0].fractions, vec![0.7, 0.3]);
     assert_eq!(scene.fluids[0].velocity, [1.0, 0.0, 0.0]);
-    assert_eq!(
-        scene.fluids[1].shape,
-        Shape::Sphere {
-            center: [0.5, 0.3, 0.05],
-            radius: 0.05
-        }
-    );
-    assert_eq!(
-        scene.fluids[1].fractions,
-        vec![0.0, 1.0],
-        "missing phases are 0"
-    );
+    assert_eq!(scene.fluids[1].shape, Shape::Sphere { center: [0.5, 0.3, 0.05], radius: 0.05 });
+    assert_eq!(scene.fluids[1].fractions, vec![0.0, 1.0], "missing phases are 0");
     assert_eq!(scene.fluids[1].velocity, [0.0; 3]);
 
     assert_eq!(scene.walls.len(), 2);
@@ -150,12 +128,7 @@ fn full_scene_parses_with_its_values() {
     assert!(!scene.walls[1].container && !scene.walls[1].open_top);
     assert_eq!(
         scene.walls[1].shape,
-        Shape::Cylinder {
-            base: [0.4, 0.0, 0.0],
-            axis: [0.0, 1.0, 0.0],
-            radius: 0.05,
-            height: 0.2
-        },
+        Shape::Cylinder { base: [0.4, 0.0, 0.0], axis: [0.0, 1.0, 0.0], radius: 0.05, height: 0.2 },
         "the axis is normalised"
     );
     assert_eq!(scene.origin, "test.toml");
@@ -182,9 +155,7 @@ fn minimal_scene_gets_the_defaults() {
 fn default_colours_differ_between_phases() {
     let mut text = MINIMAL.to_string();
     for name in ["b", "c", "d", "e", "f", "g", "h"] {
-        text.push_str(&format!(
-            "\n[[phase]]\nname = \"{name}\"\ndensity = 1.0\nviscosity = 0.0\n"
-        ));
+        text.push_str(&format!("\n[[phase]]\nname = \"{name}\"\ndensity = 1.0\nviscosity = 0.0\n"));
     }
     let scene = parse(&text).expect("valid scene");
     for (i, a) in scene.phases.iter().enumerate() {
@@ -196,10 +167,7 @@ fn default_colours_differ_between_phases() {
 
 #[test]
 fn fractions_within_tolerance_are_renormalised() {
-    let mut text = edited(
-        "fractions = { water = 1.0 }",
-        "fractions = { water = 0.6, oil = 0.40005 }",
-    );
+    let mut text = edited("fractions = { water = 1.0 }", "fractions = { water = 0.6, oil = 0.40005 }");
     text.push_str("\n[[phase]]\nname = \"oil\"\ndensity = 900.0\nviscosity = 0.1\n");
     let scene = parse(&text).expect("valid scene");
     let f = &scene.fluids[0].fractions;
@@ -241,40 +209,25 @@ fn unknown_key_inside_a_shape() {
 #[test]
 fn unknown_key_in_simulation() {
     let text = edited("max_dt = 0.002", "max_dt = 0.002\ntime_step = 0.001");
-    assert_rejected(
-        &text,
-        "simulation.time_step",
-        "allowed here: particle_spacing",
-    );
+    assert_rejected(&text, "simulation.time_step", "allowed here: particle_spacing");
 }
 
 #[test]
 fn missing_required_key() {
     let text = edited("end_time = 1.0\n", "");
-    assert_rejected(
-        &text,
-        "simulation.end_time",
-        "missing required key `end_time`",
-    );
+    assert_rejected(&text, "simulation.end_time", "missing required key `end_time`");
 }
 
 #[test]
 fn missing_simulation_table() {
-    let text = edited(
-        "[simulation]\nparticle_spacing = 0.01\nend_time = 1.0\nmax_dt = 0.002\n",
-        "",
-    );
+    let text = edited("[simulation]\nparticle_spacing = 0.01\nend_time = 1.0\nmax_dt = 0.002\n", "");
     assert_rejected(&text, "simulation", "missing the required [simulation]");
 }
 
 #[test]
 fn missing_fractions() {
     let text = edited("fractions = { water = 1.0 }\n", "");
-    assert_rejected(
-        &text,
-        "fluid[0].fractions",
-        "missing required key `fractions`",
-    );
+    assert_rejected(&text, "fluid[0].fractions", "missing required key `fractions`");
 }
 
 #[test]
@@ -302,11 +255,7 @@ fn wrong_type_float_for_integer() {
 #[test]
 fn wrong_array_length() {
     let text = edited("velocity = [0.0, 0.0, 0.0]", "velocity = [0.0, 0.0]");
-    assert_rejected(
-        &text,
-        "fluid[0].velocity",
-        "array of 3 numbers [x, y, z], found an array of 2 elements",
-    );
+    assert_rejected(&text, "fluid[0].velocity", "array of 3 numbers [x, y, z], found an array of 2 elements");
 }
 
 #[test]
@@ -318,11 +267,7 @@ fn wrong_element_type_in_array() {
 #[test]
 fn nan_is_rejected() {
     let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, nan, 0.1]");
-    assert_rejected(
-        &text,
-        "fluid[0].box.max[1]",
-        "expected a finite number, found nan",
-    );
+    assert_rejected(&text, "fluid[0].box.max[1]", "expected a finite number, found nan");
 }
 
 #[test]
@@ -352,37 +297,13 @@ fn max_dt_beyond_end_time() {
 #[test]
 fn out_of_range_settings() {
     let cases = [
-        (
-            "max_density_error = 0.5",
-            "simulation.max_density_error",
-            "in (0, 0.1]",
-        ),
-        (
-            "cfl_number = 0.0",
-            "simulation.cfl_number",
-            "in (0, 1], found 0",
-        ),
+        ("max_density_error = 0.5", "simulation.max_density_error", "in (0, 0.1]"),
+        ("cfl_number = 0.0", "simulation.cfl_number", "in (0, 1], found 0"),
         ("omega = 1.5", "simulation.omega", "in (0, 1], found 1.5"),
-        (
-            "min_iterations = 0",
-            "simulation.min_iterations",
-            "integer >= 1), found 0",
-        ),
-        (
-            "frame_interval = -1",
-            "simulation.frame_interval",
-            "> 0, found -1",
-        ),
-        (
-            "min_iterations = 200",
-            "simulation.min_iterations",
-            "max_iterations >= min_iterations",
-        ),
-        (
-            "gravity = [0, \"down\", 0]",
-            "simulation.gravity[1]",
-            "found the string \"down\"",
-        ),
+        ("min_iterations = 0", "simulation.min_iterations", "integer >= 1), found 0"),
+        ("frame_interval = -1", "simulation.frame_interval", "> 0, found -1"),
+        ("min_iterations = 200", "simulation.min_iterations", "max_iterations >= min_iterations"),
+        ("gravity = [0, \"down\", 0]", "simulation.gravity[1]", "found the string \"down\""),
     ];
     for (line, key, fragment) in cases {
         let text = edited("max_dt = 0.002", &format!("max_dt = 0.002\n{line}"));
@@ -390,21 +311,14 @@ fn out_of_range_settings() {
     }
     let text = edited("viscosity = 0.01", "viscosity = -0.01");
     assert_rejected(&text, "phase[0].viscosity", ">= 0, found -0.01");
-    let text = edited(
-        "viscosity = 0.01",
-        "viscosity = 0.01\ncolor = [0.5, 1.2, 0.0]",
-    );
+    let text = edited("viscosity = 0.01", "viscosity = 0.01\ncolor = [0.5, 1.2, 0.0]");
     assert_rejected(&text, "phase[0].color[1]", "in [0, 1], found 1.2");
 }
 
 #[test]
 fn box_min_not_below_max() {
     let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, 0.0, 0.1]");
-    assert_rejected(
-        &text,
-        "fluid[0].box",
-        "expected min < max on every axis, found min = 0 >= max = 0 on the y axis",
-    );
+    assert_rejected(&text, "fluid[0].box", "expected min < max on every axis, found min = 0 >= max = 0 on the y axis");
 }
 
 #[test]
@@ -419,11 +333,7 @@ fn sphere_and_cylinder_sizes() {
         "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
         "sphere = { center = [0.1, 0.1, 0.1], radius = 0.0 }\nfractions",
     );
-    assert_rejected(
-        &text,
-        "fluid[0].sphere.radius",
-        "the radius in m > 0, found 0",
-    );
+    assert_rejected(&text, "fluid[0].sphere.radius", "the radius in m > 0, found 0");
     let text = edited(
         "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
         "cylinder = { base = [0.1, 0.1, 0.1], axis = [0, 0, 0], radius = 0.1, height = 0.1 }\nfractions",
@@ -433,11 +343,7 @@ fn sphere_and_cylinder_sizes() {
         "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions",
         "cylinder = { base = [0.1, 0.1, 0.1], axis = [0, 1, 0], radius = 0.1 }\nfractions",
     );
-    assert_rejected(
-        &text,
-        "fluid[0].cylinder.height",
-        "missing required key `height`",
-    );
+    assert_rejected(&text, "fluid[0].cylinder.height", "missing required key `height`");
 }
 
 #[test]
@@ -449,15 +355,9 @@ fn shapes_in_the_wrong_unit_are_rejected() {
 
 #[test]
 fn no_shape_or_two_shapes() {
-    let text = edited(
-        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\n",
-        "",
-    );
+    let text = edited("box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\n", "");
     assert_rejected(&text, "fluid[0]", "exactly one shape");
-    let text = edited(
-        "container = true",
-        "container = true\nsphere = { center = [0.0, 0.0, 0.0], radius = 1.0 }",
-    );
+    let text = edited("container = true", "container = true\nsphere = { center = [0.0, 0.0, 0.0], radius = 1.0 }");
     assert_rejected(&text, "wall[0]", "found both `box` and `sphere`");
 }
 
@@ -476,11 +376,7 @@ fn fraction_out_of_range() {
 #[test]
 fn unknown_phase_in_fractions() {
     let text = edited("fractions = { water = 1.0 }", "fractions = { watr = 1.0 }");
-    assert_rejected(
-        &text,
-        "fluid[0].fractions.watr",
-        "unknown phase `watr`; the phases are: water",
-    );
+    assert_rejected(&text, "fluid[0].fractions.watr", "unknown phase `watr`; the phases are: water");
 }
 
 #[test]
@@ -499,10 +395,7 @@ fn bad_phase_names() {
 
 #[test]
 fn no_phases() {
-    let text = edited(
-        "[[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.01\n",
-        "",
-    );
+    let text = edited("[[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.01\n", "");
     assert_rejected(&text, "phase", "at least one [[phase]]");
 }
 
@@ -514,24 +407,15 @@ fn phase_as_a_single_table() {
 
 #[test]
 fn container_on_a_sphere() {
-    let text = format!(
-        "{MINIMAL}\n[[wall]]\nsphere = {{ center = [0.4, 0.3, 0.05], radius = 0.1 }}\ncontainer = true\n"
-    );
-    assert_rejected(
-        &text,
-        "wall[1].container",
-        "only allowed with a box, found a sphere",
-    );
+    let text =
+        format!("{MINIMAL}\n[[wall]]\nsphere = {{ center = [0.4, 0.3, 0.05], radius = 0.1 }}\ncontainer = true\n");
+    assert_rejected(&text, "wall[1].container", "only allowed with a box, found a sphere");
 }
 
 #[test]
 fn open_top_without_container() {
     let text = edited("container = true", "open_top = true");
-    assert_rejected(
-        &text,
-        "wall[0].open_top",
-        "only allowed with container = true",
-    );
+    assert_rejected(&text, "wall[0].open_top", "only allowed with container = true");
 }
 
 #[test]
@@ -563,11 +447,7 @@ fn nonexistent_file() {
     assert_eq!(e.file, "/nonexistent/porosph/scene.toml");
     assert_eq!(e.key, "");
     assert!(e.reason.contains("cannot read the scene file"), "{e}");
-    assert!(
-        e.to_string()
-            .starts_with("/nonexistent/porosph/scene.toml: "),
-        "{e}"
-    );
+    assert!(e.to_string().starts_with("/nonexistent/porosph/scene.toml: "), "{e}");
 }
 
 #[test]
@@ -599,10 +479,7 @@ struct Lcg(u64);
 
 impl Lcg {
     fn next(&mut self) -> u64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         self.0 >> 33
     }
 
@@ -645,8 +522,5 @@ fn random_mutations_never_panic() {
         }
     }
     // Mutations inside comments, whitespace and digits often keep the scene valid.
-    assert!(
-        accepted > 0 && accepted < 2000,
-        "accepted {accepted} of 2000"
-    );
+    assert!(accepted > 0 && accepted < 2000, "accepted {accepted} of 2000");
 }

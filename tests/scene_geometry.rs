@@ -16,9 +16,7 @@ fn scene(body: &str) -> Scene {
 }
 
 fn dist2(a: [f32; 3], b: [f32; 3]) -> f64 {
-    (0..3)
-        .map(|i| (f64::from(a[i]) - f64::from(b[i])).powi(2))
-        .sum()
+    (0..3).map(|i| (f64::from(a[i]) - f64::from(b[i])).powi(2)).sum()
 }
 
 /// Smallest distance between a point of `a` and a point of `b` (brute force).
@@ -105,10 +103,7 @@ fn container_wall_count_closed_and_open_top() {
     assert!(open.positions.iter().all(|p| p[1] < 0.03));
 
     // Every wall particle lies outside the box, and within two layers of it.
-    let boxed = Shape::Box {
-        min: [0.0, 0.0, 0.0],
-        max: [0.05, 0.03, 0.04],
-    };
+    let boxed = Shape::Box { min: [0.0, 0.0, 0.0], max: [0.05, 0.03, 0.04] };
     for &p in &closed.positions {
         let s = sdf(&boxed, p);
         assert!(s > 0.0 && s < 2.5 * D * 3f32.sqrt(), "{p:?}: {s}");
@@ -136,19 +131,12 @@ fn sphere_count_matches_its_volume() {
     // The number of lattice points in a ball of radius r = 10 d approaches
     // 4/3 pi r^3 / d^3 = 4188.8; the surface error is well within 2 %.
     let expected = 4.0 / 3.0 * std::f64::consts::PI * 1000.0;
-    for center in [
-        "[0.0, 0.0, 0.0]",
-        "[0.005, 0.005, 0.005]",
-        "[0.0123, -0.0371, 0.2]",
-    ] {
+    for center in ["[0.0, 0.0, 0.0]", "[0.005, 0.005, 0.005]", "[0.0123, -0.0371, 0.2]"] {
         let s = scene(&format!(
             "[[fluid]]\nsphere = {{ center = {center}, radius = 0.1 }}\nfractions = {{ water = 1.0 }}\n"
         ));
         let n = sample_fluid(&s, &sample_walls(&s)).positions.len() as f64;
-        assert!(
-            (n - expected).abs() / expected < 0.02,
-            "centre {center}: {n} points, expected about {expected}"
-        );
+        assert!((n - expected).abs() / expected < 0.02, "centre {center}: {n} points, expected about {expected}");
     }
 }
 
@@ -163,10 +151,7 @@ fn cylinder_count_matches_its_volume() {
          fractions = { water = 1.0 }\n",
     );
     let n = sample_fluid(&s, &sample_walls(&s)).positions.len() as f64;
-    assert!(
-        (n - expected).abs() / expected < 0.02,
-        "{n} points, expected about {expected}"
-    );
+    assert!((n - expected).abs() / expected < 0.02, "{n} points, expected about {expected}");
 }
 
 #[test]
@@ -179,10 +164,7 @@ fn solid_walls_are_two_layer_shells() {
 
     // Solid sphere of radius 10 d: the shell volume 4/3 pi (r^3 - (r - 2d)^3).
     let s = scene("[[wall]]\nsphere = { center = [0.0, 0.0, 0.0], radius = 0.1 }\n");
-    let shell = Shape::Sphere {
-        center: [0.0; 3],
-        radius: 0.1,
-    };
+    let shell = Shape::Sphere { center: [0.0; 3], radius: 0.1 };
     let walls = sample_walls(&s);
     for &p in &walls.positions {
         let dist = sdf(&shell, p);
@@ -190,10 +172,7 @@ fn solid_walls_are_two_layer_shells() {
     }
     let expected = 4.0 / 3.0 * std::f64::consts::PI * (1000.0 - 512.0);
     let n = walls.positions.len() as f64;
-    assert!(
-        (n - expected).abs() / expected < 0.03,
-        "{n}, expected about {expected}"
-    );
+    assert!((n - expected).abs() / expected < 0.03, "{n}, expected about {expected}");
 }
 
 #[test]
@@ -258,68 +237,27 @@ fn sampling_is_deterministic() {
     );
     let (w1, w2) = (sample_walls(&s), sample_walls(&s));
     assert_eq!(w1.positions, w2.positions);
-    assert_eq!(
-        sample_fluid(&s, &w1).positions,
-        sample_fluid(&s, &w2).positions
-    );
+    assert_eq!(sample_fluid(&s, &w1).positions, sample_fluid(&s, &w2).positions);
 }
 
 #[test]
 fn signed_distances_are_exact() {
     let tol = 1e-6;
-    let cube = Shape::Box {
-        min: [0.0, 0.0, 0.0],
-        max: [1.0, 2.0, 3.0],
-    };
-    assert!(
-        (sdf(&cube, [0.5, 1.0, 1.5]) + 0.5).abs() < tol,
-        "centre: nearest face x"
-    );
-    assert!(
-        (sdf(&cube, [2.0, 1.0, 1.0]) - 1.0).abs() < tol,
-        "outside a face"
-    );
-    assert!(
-        (sdf(&cube, [2.0, 3.0, 1.0]) - 2f32.sqrt()).abs() < tol,
-        "outside an edge"
-    );
-    assert!(
-        (sdf(&cube, [-1.0, -1.0, -1.0]) - 3f32.sqrt()).abs() < tol,
-        "outside a corner"
-    );
+    let cube = Shape::Box { min: [0.0, 0.0, 0.0], max: [1.0, 2.0, 3.0] };
+    assert!((sdf(&cube, [0.5, 1.0, 1.5]) + 0.5).abs() < tol, "centre: nearest face x");
+    assert!((sdf(&cube, [2.0, 1.0, 1.0]) - 1.0).abs() < tol, "outside a face");
+    assert!((sdf(&cube, [2.0, 3.0, 1.0]) - 2f32.sqrt()).abs() < tol, "outside an edge");
+    assert!((sdf(&cube, [-1.0, -1.0, -1.0]) - 3f32.sqrt()).abs() < tol, "outside a corner");
 
-    let ball = Shape::Sphere {
-        center: [1.0, 1.0, 1.0],
-        radius: 0.5,
-    };
+    let ball = Shape::Sphere { center: [1.0, 1.0, 1.0], radius: 0.5 };
     assert!((sdf(&ball, [1.0, 1.0, 1.0]) + 0.5).abs() < tol);
     assert!((sdf(&ball, [1.0, 3.0, 1.0]) - 1.5).abs() < tol);
 
-    let can = Shape::Cylinder {
-        base: [0.0, 0.0, 0.0],
-        axis: [0.0, 0.0, 1.0],
-        radius: 1.0,
-        height: 2.0,
-    };
+    let can = Shape::Cylinder { base: [0.0, 0.0, 0.0], axis: [0.0, 0.0, 1.0], radius: 1.0, height: 2.0 };
     assert!((sdf(&can, [0.0, 0.0, 1.0]) + 1.0).abs() < tol, "centre");
-    assert!(
-        (sdf(&can, [0.0, 0.2, 1.9]) + 0.1).abs() < tol,
-        "near the top cap"
-    );
-    assert!(
-        (sdf(&can, [0.9, 0.0, 1.0]) + 0.1).abs() < tol,
-        "near the side"
-    );
-    assert!(
-        (sdf(&can, [3.0, 0.0, 1.0]) - 2.0).abs() < tol,
-        "beside the side"
-    );
-    assert!(
-        (sdf(&can, [0.0, 0.5, -2.0]) - 2.0).abs() < tol,
-        "below the base"
-    );
-    assert!(
-        (sdf(&can, [0.0, 4.0, 6.0]) - 5.0).abs() < tol,
-        "beyond the rim: 3-4-5"
-    );
+    assert!((sdf(&can, [0.0, 0.2, 1.9]) + 0.1).abs() < tol, "near the top cap");
+    assert!((sdf(&can, [0.9, 0.0, 1.0]) + 0.1).abs() < tol, "near the side");
+    assert!((sdf(&can, [3.0, 0.0, 1.0]) - 2.0).abs() < tol, "beside the side");
+    assert!((sdf(&can, [0.0, 0.5, -2.0]) - 2.0).abs() < tol, "below the base");
+    assert!((sdf(&can, [0.0, 4.0, 6.0]) - 5.0).abs() < tol, "beyond the rim: 3-4-5");
 }

@@ -30,15 +30,7 @@ struct Args {
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args {
-        spacing: 0.015625,
-        steps: 60,
-        warmup: 10,
-        threads: 2,
-        max_error: 0.001,
-        dt: 0.001,
-        json: None,
-    };
+    let mut a = Args { spacing: 0.015625, steps: 60, warmup: 10, threads: 2, max_error: 0.001, dt: 0.001, json: None };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
         let mut v = || it.next().ok_or(format!("{k} needs a value"));
@@ -55,11 +47,9 @@ fn parse() -> Result<Args, String> {
             "--dt" => a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?,
             "--json" => a.json = Some(v()?),
             "-h" | "--help" => {
-                return Err(
-                    "usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
+                return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
                             [--threads N] [--max-error FRACTION] [--dt S] [--json FILE]"
-                        .into(),
-                )
+                    .into())
             }
             _ => return Err(format!("unknown argument {k}")),
         }
@@ -104,10 +94,7 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads)
-        .build()
-        .expect("thread pool");
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().expect("thread pool");
     pool.install(|| bench(&a));
 }
 
@@ -123,13 +110,7 @@ fn bench(a: &Args) {
     let mut sim = Simulation::new(scene);
     let setup_s = t0.elapsed().as_secs_f64();
     let n = sim.fluid.len();
-    eprintln!(
-        "{} fluid + {} wall particles, setup {:.2} s, {} threads",
-        n,
-        sim.walls.len(),
-        setup_s,
-        a.threads
-    );
+    eprintln!("{} fluid + {} wall particles, setup {:.2} s, {} threads", n, sim.walls.len(), setup_s, a.threads);
     let mut pass_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut step_s = Vec::new();
@@ -158,33 +139,17 @@ fn bench(a: &Args) {
         "steps measured       {measured} (after {} warm-up), t = {:.3} s, min dt {:.2e} s",
         a.warmup, sim.time, min_dt
     );
-    println!(
-        "mean s/step          {:.4}  (median {:.4})",
-        wall_s / m,
-        median
-    );
-    println!(
-        "particle-steps/s     {:.3} M  (median step: {:.3} M)",
-        pps / 1e6,
-        n as f64 / median / 1e6
-    );
+    println!("mean s/step          {:.4}  (median {:.4})", wall_s / m, median);
+    println!("particle-steps/s     {:.3} M  (median step: {:.3} M)", pps / 1e6, n as f64 / median / 1e6);
     println!("mean iterations      {:.2}", iters as f64 / m);
-    println!(
-        "pairs/particle       {:.1} fluid, {:.1} wall",
-        ff as f64 / n as f64,
-        fb as f64 / n as f64
-    );
+    println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
     println!("bytes/particle       {:.0}", sim.bytes_per_particle());
     println!("ms per pass (mean):");
     for (p, v) in PASSES.iter().zip(pass_ms) {
         println!("  {:<16} {:8.2}", p, v / m);
     }
     if let Some(path) = &a.json {
-        let passes: Vec<String> = PASSES
-            .iter()
-            .zip(pass_ms)
-            .map(|(p, v)| format!("\"{p}\": {:.3}", v / m))
-            .collect();
+        let passes: Vec<String> = PASSES.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
         let line = format!(
             "{{\"fluid_particles\": {n}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \
@@ -202,11 +167,7 @@ fn bench(a: &Args) {
             sim.bytes_per_particle(),
             passes.join(", ")
         );
-        match std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)
-        {
+        match std::fs::OpenOptions::new().create(true).append(true).open(path) {
             Ok(mut f) => {
                 let _ = writeln!(f, "{line}");
             }

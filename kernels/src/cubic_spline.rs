@@ -20,12 +20,7 @@ impl CubicSpline {
     /// The kernel of support radius `support` = H.
     pub fn new(support: f32) -> Self {
         let h = support;
-        Self {
-            support: h,
-            inv_h: 1.0 / h,
-            k: 8.0 / (PI * h * h * h),
-            l: 48.0 / (PI * h * h * h * h),
-        }
+        Self { support: h, inv_h: 1.0 / h, k: 8.0 / (PI * h * h * h), l: 48.0 / (PI * h * h * h * h) }
     }
 
     /// W(r) = k (6q^3 - 6q^2 + 1) for q <= 1/2, 2k (1-q)^3 for q <= 1, 0

@@ -120,15 +120,18 @@ impl CellGrid {
     /// fixed order; empty cells are skipped. Returns how many were written.
     #[inline]
     pub fn neighbor_ranges(&self, c: [u32; 3], out: &mut [(u32, u32); 27]) -> usize {
+        // Dilated (bit-spread) coordinates of c-1, c, c+1 per axis; a
+        // neighbour's key is the OR of one from each axis.
+        let dil = |v: u32, shift: u32| -> [Option<u64>; 3] {
+            let d = |w: i64| (0..=MAX_COORD).contains(&w).then(|| part1by2(w as u64) << shift);
+            [d(v as i64 - 1), d(v as i64), d(v as i64 + 1)]
+        };
+        let (xs, ys, zs) = (dil(c[0], 0), dil(c[1], 1), dil(c[2], 2));
         let mut n = 0;
-        for dz in -1i64..=1 {
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let q = [c[0] as i64 + dx, c[1] as i64 + dy, c[2] as i64 + dz];
-                    if q.iter().any(|&v| !(0..=MAX_COORD).contains(&v)) {
-                        continue;
-                    }
-                    let r = self.range(morton([q[0] as u32, q[1] as u32, q[2] as u32]));
+        for z in zs.iter().flatten() {
+            for y in ys.iter().flatten() {
+                for x in xs.iter().flatten() {
+                    let r = self.range(x | y | z);
                     if r.1 > r.0 {
                         out[n] = r;
                         n += 1;

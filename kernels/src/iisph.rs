@@ -28,14 +28,7 @@ pub fn harmonic_volume(vi: f32, vj: f32) -> f32 {
 /// Pass 2/4b, fluid rows: sigma_i = sum_j V0_j W_ij over fluid (incl. self)
 /// and wall neighbours, and the current volume V_i = V0_i / sigma_i
 /// (PHYSICS.md §2.3). `sigma` is the smoothed outer-fluid fraction V0/V.
-pub fn fluid_volumes(
-    ff: &PairLists,
-    fb: &PairLists,
-    v0_f: &[f32],
-    v0_b: &[f32],
-    sigma: &mut [f32],
-    vol: &mut [f32],
-) {
+pub fn fluid_volumes(ff: &PairLists, fb: &PairLists, v0_f: &[f32], v0_b: &[f32], sigma: &mut [f32], vol: &mut [f32]) {
     sigma
         .par_chunks_mut(BLOCK)
         .zip(vol.par_chunks_mut(BLOCK))
@@ -44,8 +37,7 @@ pub fn fluid_volumes(
         .for_each(|(b, ((sig, v), (bf, bb)))| {
             for q in 0..sig.len() {
                 let i = b * BLOCK + q;
-                let s = weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f)
-                    + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
+                let s = weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f) + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
                 sig[q] = s;
                 v[q] = if s > 0.0 { v0_f[i] / s } else { 0.0 };
             }
@@ -63,19 +55,16 @@ pub fn wall_volumes(
     sigma: &mut [f32],
     vol: &mut [f32],
 ) {
-    sigma
-        .par_chunks_mut(BLOCK)
-        .zip(vol.par_chunks_mut(BLOCK))
-        .zip(bf.used().par_iter())
-        .enumerate()
-        .for_each(|(b, ((sig, v), blk))| {
+    sigma.par_chunks_mut(BLOCK).zip(vol.par_chunks_mut(BLOCK)).zip(bf.used().par_iter()).enumerate().for_each(
+        |(b, ((sig, v), blk))| {
             for q in 0..sig.len() {
                 let w = active[b * BLOCK + q] as usize;
                 let s = sigma_static[w] + weighted_sum(&blk.j, &blk.w, blk.range(q), v0_f);
                 sig[q] = s;
                 v[q] = if s > 0.0 { v0_b[w] / s } else { 0.0 };
             }
-        });
+        },
+    );
 }
 
 #[inline(always)]
@@ -94,22 +83,18 @@ fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) ->
 /// g_ij <- Vbar_ij grad W_ij, with V_i from `vol_q` (query side, indexed
 /// like the lists) and V_j from `vol_t` (target side).
 pub fn scale_by_pair_volume(lists: &mut PairLists, vol_q: &[f32], vol_t: &[f32]) {
-    lists
-        .used_mut()
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(b, blk)| {
-            let nq = blk.start.len().saturating_sub(1);
-            for q in 0..nq {
-                let vi = vol_q[b * BLOCK + q];
-                for p in blk.range(q) {
-                    let s = harmonic_volume(vi, vol_t[blk.j[p] as usize]);
-                    blk.gx[p] *= s;
-                    blk.gy[p] *= s;
-                    blk.gz[p] *= s;
-                }
+    lists.used_mut().par_iter_mut().enumerate().for_each(|(b, blk)| {
+        let nq = blk.start.len().saturating_sub(1);
+        for q in 0..nq {
+            let vi = vol_q[b * BLOCK + q];
+            for p in blk.range(q) {
+                let s = harmonic_volume(vi, vol_t[blk.j[p] as usize]);
+                blk.gx[p] *= s;
+                blk.gy[p] *= s;
+                blk.gz[p] *= s;
             }
-        });
+        }
+    });
 }
 
 /// Velocities as three slices.
@@ -128,8 +113,8 @@ pub struct FluidRows<'a> {
     pub u_star: Vel<'a>,
     /// Current volume V, m^3.
     pub vol: &'a [f32],
-    /// Mass m, kg.
-    pub mass: &'a [f32],
+    /// V / m, m^3/kg (0 for rows outside the solve).
+    pub vm: &'a [f32],
     /// Outer fluid fraction alpha_f (1 for a single phase).
     pub alpha_f: &'a [f32],
     /// sigma = V0 / V.
@@ -165,12 +150,7 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
                 let mut s2 = F::ZERO;
                 let r = bf.range(q);
-                let (j, gx, gy, gz) = (
-                    &bf.j[..r.end],
-                    &bf.gx[..r.end],
-                    &bf.gy[..r.end],
-                    &bf.gz[..r.end],
-                );
+                let (j, gx, gy, gz) = (&bf.j[..r.end], &bf.gx[..r.end], &bf.gy[..r.end], &bf.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
                     let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
@@ -181,8 +161,7 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
                     sx += x;
                     sy += y;
                     sz += z;
-                    let vm = gather(rows.vol, j, k) / gather_nonzero(rows.mass, j, k);
-                    s2 += vm * (x * x + y * y + z * z);
+                    s2 += gather(rows.vm, j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
                 let r = bb.range(q);
@@ -197,22 +176,11 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
                     k += LANES;
                 }
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
-                let vm_i = rows.vol[i] / rows.mass[i];
+                let vm_i = rows.vm[i];
                 src[q] = rows.alpha_f[i] * (1.0 + dt * sum(div)) - rows.sigma[i];
                 dg[q] = -dt2 * (vm_i * (sx * sx + sy * sy + sz * sz) + sum(s2));
             }
         });
-}
-
-/// Gathers like [`gather`] but with 1 in the lanes past the end (divisors).
-#[inline(always)]
-fn gather_nonzero(src: &[f32], idx: &[u32], k: usize) -> F {
-    let mut a = [1.0f32; LANES];
-    let n = (idx.len().saturating_sub(k)).min(LANES);
-    for l in 0..n {
-        a[l] = src[idx[k + l] as usize];
-    }
-    F::from(a)
 }
 
 /// Pass 4c, wall rows (after [`scale_by_pair_volume`]): S_b = 1 + dt div*_b
@@ -221,44 +189,32 @@ fn gather_nonzero(src: &[f32], idx: &[u32], k: usize) -> F {
 pub fn wall_source_diagonal(
     bf: &PairLists,
     u_star: Vel,
-    vol_f: &[f32],
-    mass_f: &[f32],
+    vm_f: &[f32],
     sigma_b: &[f32],
     dt: f32,
     source: &mut [f32],
     diag: &mut [f32],
 ) {
     let dt2 = dt * dt;
-    source
-        .par_chunks_mut(BLOCK)
-        .zip(diag.par_chunks_mut(BLOCK))
-        .zip(bf.used().par_iter())
-        .enumerate()
-        .for_each(|(b, ((src, dg), blk))| {
+    source.par_chunks_mut(BLOCK).zip(diag.par_chunks_mut(BLOCK)).zip(bf.used().par_iter()).enumerate().for_each(
+        |(b, ((src, dg), blk))| {
             for q in 0..src.len() {
                 let r = blk.range(q);
-                let (j, gx, gy, gz) = (
-                    &blk.j[..r.end],
-                    &blk.gx[..r.end],
-                    &blk.gy[..r.end],
-                    &blk.gz[..r.end],
-                );
+                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
                 let mut div = F::ZERO;
                 let mut s2 = F::ZERO;
                 let mut k = r.start;
                 while k < r.end {
                     let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
-                    div += gather(u_star.x, j, k) * x
-                        + gather(u_star.y, j, k) * y
-                        + gather(u_star.z, j, k) * z;
-                    let vm = gather(vol_f, j, k) / gather_nonzero(mass_f, j, k);
-                    s2 += vm * (x * x + y * y + z * z);
+                    div += gather(u_star.x, j, k) * x + gather(u_star.y, j, k) * y + gather(u_star.z, j, k) * z;
+                    s2 += gather(vm_f, j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
                 src[q] = 1.0 + dt * sum(div) - sigma_b[b * BLOCK + q];
                 dg[q] = -dt2 * sum(s2);
             }
-        });
+        },
+    );
 }
 
 /// Pressure acceleration, P-Eq. 27 with the factor 2 restored:
@@ -267,8 +223,7 @@ pub fn wall_source_diagonal(
 pub fn pressure_acceleration(
     ff: &PairLists,
     fb: &PairLists,
-    vol: &[f32],
-    mass: &[f32],
+    vm: &[f32],
     p_f: &[f32],
     p_b: &[f32],
     ax: &mut [f32],
@@ -287,12 +242,7 @@ pub fn pressure_acceleration(
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
                 for (blk, p) in [(bf, p_f), (bb, p_b)] {
                     let r = blk.range(q);
-                    let (j, gx, gy, gz) = (
-                        &blk.j[..r.end],
-                        &blk.gx[..r.end],
-                        &blk.gy[..r.end],
-                        &blk.gz[..r.end],
-                    );
+                    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
                     let mut k = r.start;
                     while k < r.end {
                         let s = pi + gather(p, j, k);
@@ -302,11 +252,7 @@ pub fn pressure_acceleration(
                         k += LANES;
                     }
                 }
-                let c = if mass[i] > 0.0 {
-                    -vol[i] / mass[i]
-                } else {
-                    0.0
-                };
+                let c = -vm[i];
                 ox[q] = c * sum(sx);
                 oy[q] = c * sum(sy);
                 oz[q] = c * sum(sz);
@@ -346,12 +292,7 @@ pub fn fluid_jacobi(
                 let (axi, ayi, azi) = (F::splat(ap.x[i]), F::splat(ap.y[i]), F::splat(ap.z[i]));
                 let mut acc = F::ZERO;
                 let r = bf.range(q);
-                let (j, gx, gy, gz) = (
-                    &bf.j[..r.end],
-                    &bf.gx[..r.end],
-                    &bf.gy[..r.end],
-                    &bf.gz[..r.end],
-                );
+                let (j, gx, gy, gz) = (&bf.j[..r.end], &bf.gx[..r.end], &bf.gy[..r.end], &bf.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
                     acc += (axi - gather(ap.x, j, k)) * load(gx, k)
@@ -375,43 +316,27 @@ pub fn fluid_jacobi(
 
 /// Relaxed Jacobi update of the active wall rows (compact arrays):
 /// (Ap)_b = -dt^2 sum_f Vbar a^p_f.grad W_bf, then as [`fluid_jacobi`].
-pub fn wall_jacobi(
-    bf: &PairLists,
-    ap: Vel,
-    source: &[f32],
-    diag: &[f32],
-    dt: f32,
-    omega: f32,
-    p: &mut [f32],
-) {
+pub fn wall_jacobi(bf: &PairLists, ap: Vel, source: &[f32], diag: &[f32], dt: f32, omega: f32, p: &mut [f32]) {
     let dt2 = dt * dt;
-    p.par_chunks_mut(BLOCK)
-        .zip(bf.used().par_iter())
-        .enumerate()
-        .for_each(|(b, (pp, blk))| {
-            for q in 0..pp.len() {
-                let i = b * BLOCK + q;
-                if diag[i].abs() < f32::MIN_POSITIVE {
-                    pp[q] = 0.0;
-                    continue;
-                }
-                let r = blk.range(q);
-                let (j, gx, gy, gz) = (
-                    &blk.j[..r.end],
-                    &blk.gx[..r.end],
-                    &blk.gy[..r.end],
-                    &blk.gz[..r.end],
-                );
-                let mut acc = F::ZERO;
-                let mut k = r.start;
-                while k < r.end {
-                    acc += gather(ap.x, j, k) * load(gx, k)
-                        + gather(ap.y, j, k) * load(gy, k)
-                        + gather(ap.z, j, k) * load(gz, k);
-                    k += LANES;
-                }
-                let res = source[i] + dt2 * sum(acc);
-                pp[q] = (pp[q] + omega * res / diag[i]).max(0.0);
+    p.par_chunks_mut(BLOCK).zip(bf.used().par_iter()).enumerate().for_each(|(b, (pp, blk))| {
+        for q in 0..pp.len() {
+            let i = b * BLOCK + q;
+            if diag[i].abs() < f32::MIN_POSITIVE {
+                pp[q] = 0.0;
+                continue;
             }
-        });
+            let r = blk.range(q);
+            let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+            let mut acc = F::ZERO;
+            let mut k = r.start;
+            while k < r.end {
+                acc += gather(ap.x, j, k) * load(gx, k)
+                    + gather(ap.y, j, k) * load(gy, k)
+                    + gather(ap.z, j, k) * load(gz, k);
+                k += LANES;
+            }
+            let res = source[i] + dt2 * sum(acc);
+            pp[q] = (pp[q] + omega * res / diag[i]).max(0.0);
+        }
+    });
 }

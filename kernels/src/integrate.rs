@@ -20,11 +20,7 @@ pub fn integrate(s: State, u_star: Vel, ap: Vel, dt: f32) {
     s.x.par_chunks_mut(BLOCK)
         .zip(s.y.par_chunks_mut(BLOCK))
         .zip(s.z.par_chunks_mut(BLOCK))
-        .zip(
-            s.ux.par_chunks_mut(BLOCK)
-                .zip(s.uy.par_chunks_mut(BLOCK))
-                .zip(s.uz.par_chunks_mut(BLOCK)),
-        )
+        .zip(s.ux.par_chunks_mut(BLOCK).zip(s.uy.par_chunks_mut(BLOCK)).zip(s.uz.par_chunks_mut(BLOCK)))
         .enumerate()
         .for_each(|(b, (((x, y), z), ((ux, uy), uz)))| {
             for q in 0..x.len() {

@@ -13,12 +13,7 @@ pub type F = wide::f32x16;
 
 /// Arithmetic that both `f32` and [`F`] provide, so one kernel serves both.
 pub trait Real:
-    Copy
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
 {
     fn splat(v: f32) -> Self;
     fn sqrt(self) -> Self;
@@ -90,12 +85,26 @@ impl Real for F {
     }
 }
 
-/// Loads `s[k..k + LANES]`, zero-filling lanes past the end of `s`.
+/// Loads `s[k..k + LANES]` (all lanes must lie inside `s`: pair lists are
+/// padded to whole vectors, see [`crate::neighbors`]).
 #[inline(always)]
 pub fn load(s: &[f32], k: usize) -> F {
+    let a: &[f32; LANES] = s[k..k + LANES].try_into().expect("a whole vector");
+    F::from(*a)
+}
+
+/// Stores `v` to `s[k..k + LANES]`.
+#[inline(always)]
+pub fn store(s: &mut [f32], k: usize, v: F) {
+    let a: &mut [f32; LANES] = (&mut s[k..k + LANES]).try_into().expect("a whole vector");
+    *a = v.to_array();
+}
+
+/// Loads `s[k..k + LANES]`, zero-filling lanes past the end of `s`.
+#[inline(always)]
+pub fn load_partial(s: &[f32], k: usize) -> F {
     if k + LANES <= s.len() {
-        let a: [f32; LANES] = s[k..k + LANES].try_into().unwrap_or([0.0; LANES]);
-        F::from(a)
+        load(s, k)
     } else {
         let mut a = [0.0f32; LANES];
         let n = s.len().saturating_sub(k);
@@ -104,16 +113,29 @@ pub fn load(s: &[f32], k: usize) -> F {
     }
 }
 
-/// Gathers `src[idx[k + l]]` for each lane l; lanes past the end of `idx`
-/// read 0.
+/// Gathers `src[idx[k + l]]` for the LANES lanes l (all of `idx[k..k + LANES]`
+/// must exist and be valid indices of `src`). One AVX-512 gather where the
+/// target has it.
 #[inline(always)]
 pub fn gather(src: &[f32], idx: &[u32], k: usize) -> F {
-    let mut a = [0.0f32; LANES];
-    let n = (idx.len().saturating_sub(k)).min(LANES);
-    for l in 0..n {
-        a[l] = src[idx[k + l] as usize];
+    let ix: &[u32; LANES] = idx[k..k + LANES].try_into().expect("a whole vector");
+    #[cfg(target_feature = "avx512f")]
+    {
+        use std::arch::x86_64::{__m512, _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_reduce_max_epu32};
+        // SAFETY: the load reads the 16 u32 of `ix`; the gather reads
+        // src[ix[l]] only after checking that the largest index is in
+        // bounds; F and __m512 are both 16 f32 in 64 bytes.
+        unsafe {
+            let vi = _mm512_loadu_si512(ix.as_ptr() as *const _);
+            assert!((_mm512_reduce_max_epu32(vi) as usize) < src.len(), "gather index out of bounds");
+            let v = _mm512_i32gather_ps::<4>(vi, src.as_ptr());
+            std::mem::transmute::<__m512, F>(v)
+        }
     }
-    F::from(a)
+    #[cfg(not(target_feature = "avx512f"))]
+    {
+        F::from(std::array::from_fn::<f32, LANES, _>(|l| src[ix[l] as usize]))
+    }
 }
 
 /// Sum of the lanes, in a fixed order (so results do not depend on anything

@@ -9,7 +9,7 @@
 use crate::blocks::BLOCK;
 use crate::cubic_spline::CubicSpline;
 use crate::grid::{cell_of, morton, CellGrid};
-use crate::lanes::{load, F, LANES};
+use crate::lanes::{load, load_partial, store, F, LANES};
 use rayon::prelude::*;
 
 /// The pairs of one block of query particles (local CSR).
@@ -142,14 +142,12 @@ impl Points<'_> {
 /// Finds, for every query point, all target points with |x_q - x_t| < H
 /// (H = `kernel.support`; the support is half-open, W(H) = 0), and stores
 /// their kernel values and gradients. Targets must be sorted by the cells of
-/// `grid`. Pairs of a query are in target-cell order, then target order.
-pub fn build_pairs(
-    lists: &mut PairLists,
-    query: Points,
-    target: Points,
-    grid: &CellGrid,
-    kernel: &CubicSpline,
-) {
+/// `grid`. Pairs of a query are in ascending target order.
+///
+/// Each query's pairs are padded to a whole number of SIMD vectors with
+/// pairs of weight and gradient 0 (target index: the query's first real
+/// neighbour, or 0), so that every pass loads whole vectors.
+pub fn build_pairs(lists: &mut PairLists, query: Points, target: Points, grid: &CellGrid, kernel: &CubicSpline) {
     let n = query.len();
     let nblocks = n.div_ceil(BLOCK);
     if lists.blocks.len() < nblocks {
@@ -157,59 +155,134 @@ pub fn build_pairs(
     }
     lists.n = n;
     let h2 = kernel.support * kernel.support;
-    lists.blocks[..nblocks]
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(b, blk)| {
-            blk.clear();
-            let lo = b * BLOCK;
-            let hi = (lo + BLOCK).min(n);
-            let mut ranges = [(0u32, 0u32); 27];
-            let mut nr = 0;
-            let mut last_cell = [u32::MAX; 3];
-            blk.start.push(0);
-            for i in lo..hi {
-                let (xi, yi, zi) = (query.x[i], query.y[i], query.z[i]);
-                let c = cell_of(xi, yi, zi, grid.inv_cell);
-                if c != last_cell {
-                    nr = grid.neighbor_ranges(c, &mut ranges);
-                    last_cell = c;
-                }
-                let (vx, vy, vz) = (F::splat(xi), F::splat(yi), F::splat(zi));
-                for &(s, e) in &ranges[..nr] {
-                    let (s, e) = (s as usize, e as usize);
-                    let mut k = s;
-                    while k < e {
-                        let dx = vx - load(&target.x[..e], k);
-                        let dy = vy - load(&target.y[..e], k);
-                        let dz = vz - load(&target.z[..e], k);
-                        let r2 = dx * dx + dy * dy + dz * dz;
-                        let lanes = (e - k).min(LANES);
-                        let inside = r2.simd_lt(F::splat(h2)).to_bitmask() & ((1u32 << lanes) - 1);
-                        if inside != 0 {
-                            let r = r2.sqrt();
-                            let w = kernel.w(r).to_array();
-                            let g = kernel.grad_over_r(r);
-                            let (gx, gy, gz) = (
-                                (g * dx).to_array(),
-                                (g * dy).to_array(),
-                                (g * dz).to_array(),
-                            );
-                            let mut m = inside;
-                            while m != 0 {
-                                let l = m.trailing_zeros() as usize;
-                                m &= m - 1;
-                                blk.j.push((k + l) as u32);
-                                blk.w.push(w[l]);
-                                blk.gx.push(gx[l]);
-                                blk.gy.push(gy[l]);
-                                blk.gz.push(gz[l]);
-                            }
-                        }
-                        k += LANES;
-                    }
-                }
-                blk.start.push(blk.j.len() as u32);
+    lists.blocks[..nblocks].par_iter_mut().enumerate().for_each(|(b, blk)| {
+        blk.clear();
+        let lo = b * BLOCK;
+        let hi = (lo + BLOCK).min(n);
+        let mut ranges = [(0u32, 0u32); 27];
+        let mut nr = 0;
+        let mut last_cell = [u32::MAX; 3];
+        blk.start.push(0);
+        for i in lo..hi {
+            let (xi, yi, zi) = (query.x[i], query.y[i], query.z[i]);
+            let c = cell_of(xi, yi, zi, grid.inv_cell);
+            if c != last_cell {
+                let found = grid.neighbor_ranges(c, &mut ranges);
+                nr = merge_ranges(&mut ranges, found);
+                last_cell = c;
             }
-        });
+            let first = blk.j.len();
+            let (vx, vy, vz) = (F::splat(xi), F::splat(yi), F::splat(zi));
+            // Pass 1: compress the candidates inside the support; keep their
+            // offsets x_ij in the gradient slots.
+            for &(s, e) in &ranges[..nr] {
+                let (s, e) = (s as usize, e as usize);
+                let mut k = s;
+                while k < e {
+                    let dx = vx - load_partial(target.x, k);
+                    let dy = vy - load_partial(target.y, k);
+                    let dz = vz - load_partial(target.z, k);
+                    let r2 = dx * dx + dy * dy + dz * dz;
+                    let lanes = (e - k).min(LANES);
+                    let inside = r2.simd_lt(F::splat(h2)).to_bitmask() & ((1u32 << lanes) - 1);
+                    if inside != 0 {
+                        push_offsets(blk, inside, k as u32, dx, dy, dz);
+                    }
+                    k += LANES;
+                }
+            }
+            // Pad to whole vectors with zero pairs.
+            let real = blk.j.len() - first;
+            let pad = blk.j.get(first).copied().unwrap_or(0);
+            while (blk.j.len() - first) % LANES != 0 {
+                blk.j.push(pad);
+                blk.gx.push(0.0);
+                blk.gy.push(0.0);
+                blk.gz.push(0.0);
+            }
+            blk.w.resize(blk.j.len(), 0.0);
+            // Pass 2: kernel values and gradients of the real pairs, a
+            // whole vector at a time (padding lanes stay 0).
+            let mut k = first;
+            while k < blk.j.len() {
+                let (dx, dy, dz) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+                let r = (dx * dx + dy * dy + dz * dz).sqrt();
+                let valid = (real + first).saturating_sub(k).min(LANES);
+                let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < valid { 1.0 } else { 0.0 }));
+                let g = kernel.grad_over_r(r) * keep;
+                store(&mut blk.w, k, kernel.w(r) * keep);
+                store(&mut blk.gx, k, g * dx);
+                store(&mut blk.gy, k, g * dy);
+                store(&mut blk.gz, k, g * dz);
+                k += LANES;
+            }
+            blk.start.push(blk.j.len() as u32);
+        }
+    });
+}
+
+/// Sorts the ranges by start and joins ranges that touch (in Morton order,
+/// cells that differ only in their lowest bits are contiguous), so a query
+/// scans fewer, longer runs. Returns the new count.
+fn merge_ranges(r: &mut [(u32, u32); 27], n: usize) -> usize {
+    r[..n].sort_unstable();
+    let mut m = 0;
+    for k in 0..n {
+        if m > 0 && r[m - 1].1 == r[k].0 {
+            r[m - 1].1 = r[k].1;
+        } else {
+            r[m] = r[k];
+            m += 1;
+        }
+    }
+    m
+}
+
+/// Appends the lanes of `mask`: target index `base + lane` to `j`, the
+/// offset x_ij to the gradient slots (`w` is filled later).
+#[inline(always)]
+fn push_offsets(blk: &mut PairBlock, mask: u32, base: u32, gx: F, gy: F, gz: F) {
+    #[cfg(target_feature = "avx512f")]
+    {
+        use std::arch::x86_64::*;
+        let cnt = mask.count_ones() as usize;
+        let len = blk.j.len();
+        for v in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
+            v.reserve(LANES);
+        }
+        blk.j.reserve(LANES);
+        let m = mask as __mmask16;
+        // SAFETY: each vector has room for LANES more elements (reserved
+        // above); a compress store writes popcount(mask) <= LANES elements
+        // at its pointer; set_len covers exactly the elements written;
+        // j, gx, gy, gz have the same length `len` (they grow together).
+        unsafe {
+            let idx = _mm512_add_epi32(
+                _mm512_set1_epi32(base as i32),
+                _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+            );
+            _mm512_mask_compressstoreu_epi32(blk.j.as_mut_ptr().add(len) as *mut _, m, idx);
+            let f = |v: F| std::mem::transmute::<F, __m512>(v);
+            _mm512_mask_compressstoreu_ps(blk.gx.as_mut_ptr().add(len) as *mut _, m, f(gx));
+            _mm512_mask_compressstoreu_ps(blk.gy.as_mut_ptr().add(len) as *mut _, m, f(gy));
+            _mm512_mask_compressstoreu_ps(blk.gz.as_mut_ptr().add(len) as *mut _, m, f(gz));
+            blk.j.set_len(len + cnt);
+            blk.gx.set_len(len + cnt);
+            blk.gy.set_len(len + cnt);
+            blk.gz.set_len(len + cnt);
+        }
+    }
+    #[cfg(not(target_feature = "avx512f"))]
+    {
+        let (gx, gy, gz) = (gx.to_array(), gy.to_array(), gz.to_array());
+        let mut m = mask;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            blk.j.push(base + l as u32);
+            blk.gx.push(gx[l]);
+            blk.gy.push(gy[l]);
+            blk.gz.push(gz[l]);
+        }
+    }
 }

@@ -60,10 +60,7 @@ fn lattice_gradient_sums_to_zero_and_volume_sums_to_one() {
         }
     }
     for gc in g {
-        assert!(
-            gc.abs() < 1e-6 * gmag.abs(),
-            "sum of gradients {gc} vs scale {gmag}"
-        );
+        assert!(gc.abs() < 1e-6 * gmag.abs(), "sum of gradients {gc} vs scale {gmag}");
     }
     let vol_sum = w * (d as f64).powi(3);
     assert!((vol_sum - 0.99997).abs() < 1e-4, "d^3 sum W = {vol_sum}");
@@ -79,10 +76,7 @@ fn gradient_matches_finite_difference() {
         let fd = (k.w((r + e) as f32) as f64 - k.w((r - e) as f32) as f64) / (2.0 * e);
         let an = k.grad_over_r(r as f32) as f64 * r;
         let scale = k.w0() as f64 / H as f64;
-        assert!(
-            (fd - an).abs() < 2e-3 * scale,
-            "r = {r}: fd {fd} vs analytic {an}"
-        );
+        assert!((fd - an).abs() < 2e-3 * scale, "r = {r}: fd {fd} vs analytic {an}");
     }
 }
 
@@ -96,12 +90,7 @@ fn simd_equals_scalar_lane_by_lane() {
         let g = k.grad_over_r(F::from(rs)).to_array();
         for l in 0..LANES {
             assert_eq!(w[l].to_bits(), k.w(rs[l]).to_bits(), "W at r = {}", rs[l]);
-            assert_eq!(
-                g[l].to_bits(),
-                k.grad_over_r(rs[l]).to_bits(),
-                "W'/r at r = {}",
-                rs[l]
-            );
+            assert_eq!(g[l].to_bits(), k.grad_over_r(rs[l]).to_bits(), "W'/r at r = {}", rs[l]);
         }
     }
 }

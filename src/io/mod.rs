@@ -54,10 +54,7 @@ pub struct IoError {
 
 impl IoError {
     pub fn new(path: &Path, reason: impl fmt::Display) -> Self {
-        Self {
-            path: path.to_path_buf(),
-            reason: reason.to_string(),
-        }
+        Self { path: path.to_path_buf(), reason: reason.to_string() }
     }
 }
 

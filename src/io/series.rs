@@ -30,10 +30,7 @@ pub struct SeriesWriter {
 impl SeriesWriter {
     /// A series index at `path` (not written until the first [`SeriesWriter::add`]).
     pub fn new(path: &Path) -> Self {
-        Self {
-            path: path.to_path_buf(),
-            entries: Vec::new(),
-        }
+        Self { path: path.to_path_buf(), entries: Vec::new() }
     }
 
     /// The series index at `path` with the entries it already lists, for a
@@ -47,10 +44,7 @@ impl SeriesWriter {
             Err(e) => return Err(IoError::new(path, format!("cannot read: {e}"))),
         };
         let entries = parse_series(&text).map_err(|reason| IoError::new(path, reason))?;
-        Ok(Self {
-            path: path.to_path_buf(),
-            entries,
-        })
+        Ok(Self { path: path.to_path_buf(), entries })
     }
 
     /// The listed frames, `(file name, time)`, in file order.
@@ -64,10 +58,7 @@ impl SeriesWriter {
     /// takes the new time. `time` must be finite: JSON has no NaN.
     pub fn add(&mut self, file_name: &str, time: f64) -> Result<(), IoError> {
         if !time.is_finite() {
-            return Err(IoError::new(
-                &self.path,
-                format!("time {time} of {file_name:?} is not finite"),
-            ));
+            return Err(IoError::new(&self.path, format!("time {time} of {file_name:?} is not finite")));
         }
         match self.entries.iter_mut().find(|(name, _)| name == file_name) {
             Some(entry) => entry.1 = time,
@@ -80,9 +71,7 @@ impl SeriesWriter {
     /// renames it over the index.
     fn write(&self) -> Result<(), IoError> {
         let path = &self.path;
-        let name = path
-            .file_name()
-            .ok_or_else(|| IoError::new(path, "not a file name"))?;
+        let name = path.file_name().ok_or_else(|| IoError::new(path, "not a file name"))?;
         let mut tmp_name = OsString::from(".");
         tmp_name.push(name);
         tmp_name.push(".tmp");
@@ -107,11 +96,7 @@ fn render_series(entries: &[(String, f64)]) -> String {
     for (i, (name, time)) in entries.iter().enumerate() {
         let sep = if i + 1 < entries.len() { "," } else { "" };
         // Writing into a String cannot fail.
-        let _ = writeln!(
-            s,
-            "    {{ \"name\" : {}, \"time\" : {time:?} }}{sep}",
-            json_string(name)
-        );
+        let _ = writeln!(s, "    {{ \"name\" : {}, \"time\" : {time:?} }}{sep}", json_string(name));
     }
     s.push_str("  ]\n}\n");
     s
@@ -140,10 +125,7 @@ fn json_string(text: &str) -> String {
 
 /// The `(name, time)` entries of a series file.
 fn parse_series(text: &str) -> Result<Vec<(String, f64)>, String> {
-    let mut parser = Parser {
-        bytes: text.as_bytes(),
-        pos: 0,
-    };
+    let mut parser = Parser { bytes: text.as_bytes(), pos: 0 };
     let root = parser.value(0)?;
     parser.skip_space();
     if parser.pos != parser.bytes.len() {
@@ -299,9 +281,7 @@ impl Parser<'_> {
         }
         // The bytes are ASCII, so this slice is valid UTF-8.
         let text = std::str::from_utf8(&self.bytes[start..self.pos]).unwrap_or("");
-        text.parse::<f64>()
-            .map(Json::Number)
-            .map_err(|_| self.error("bad number"))
+        text.parse::<f64>().map(Json::Number).map_err(|_| self.error("bad number"))
     }
 
     /// A string literal; the opening quote is at `pos`.
@@ -363,10 +343,7 @@ impl Parser<'_> {
     }
 
     fn hex4(&mut self) -> Result<u32, String> {
-        let digits = self
-            .bytes
-            .get(self.pos..self.pos + 4)
-            .ok_or_else(|| self.error("short \\u escape"))?;
+        let digits = self.bytes.get(self.pos..self.pos + 4).ok_or_else(|| self.error("short \\u escape"))?;
         let text = std::str::from_utf8(digits).map_err(|_| self.error("bad \\u escape"))?;
         let code = u32::from_str_radix(text, 16).map_err(|_| self.error("bad \\u escape"))?;
         self.pos += 4;

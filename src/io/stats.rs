@@ -19,11 +19,7 @@ impl StatsWriter {
         let mut out = BufWriter::new(file);
         writeln!(out, "{}", columns.join(",")).map_err(|e| IoError::new(path, e))?;
         out.flush().map_err(|e| IoError::new(path, e))?;
-        Ok(Self {
-            path: path.to_path_buf(),
-            out,
-            columns: columns.len(),
-        })
+        Ok(Self { path: path.to_path_buf(), out, columns: columns.len() })
     }
 
     /// Writes one row; `values.len()` must equal the number of columns.
@@ -32,16 +28,12 @@ impl StatsWriter {
         let mut first = true;
         for v in values {
             if !first {
-                self.out
-                    .write_all(b",")
-                    .map_err(|e| IoError::new(&self.path, e))?;
+                self.out.write_all(b",").map_err(|e| IoError::new(&self.path, e))?;
             }
             first = false;
             write!(self.out, "{v}").map_err(|e| IoError::new(&self.path, e))?;
         }
-        self.out
-            .write_all(b"\n")
-            .map_err(|e| IoError::new(&self.path, e))?;
+        self.out.write_all(b"\n").map_err(|e| IoError::new(&self.path, e))?;
         self.out.flush().map_err(|e| IoError::new(&self.path, e))
     }
 }

@@ -45,10 +45,7 @@ pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), IoError> {
     let tmp = temp_path(path)?;
     let written = write_file(&tmp, frame)
         .and_then(|()| sync_file(&tmp))
-        .and_then(|()| {
-            fs::rename(&tmp, path)
-                .map_err(|e| format!("cannot rename {} to it: {e}", tmp.display()))
-        });
+        .and_then(|()| fs::rename(&tmp, path).map_err(|e| format!("cannot rename {} to it: {e}", tmp.display())));
     written.map_err(|reason| {
         // Best effort: the temporary file may not exist (creation failed).
         let _ = fs::remove_file(&tmp);
@@ -65,8 +62,7 @@ pub fn read_frame(path: &Path) -> Result<Frame, IoError> {
     if !meta.is_file() {
         return Err(IoError::new(path, "not a regular file"));
     }
-    let file = File::open(path)
-        .map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
+    let file = File::open(path).map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
     read_file(&file).map_err(|reason| IoError::new(path, reason))
 }
 
@@ -86,48 +82,22 @@ fn summarize(s: &mut String, path: &Path, frame: &Frame) -> fmt::Result {
     writeln!(s, "time:   {} s", frame.time)?;
     writeln!(s, "step:   {}", frame.step)?;
     writeln!(s, "points: {}", frame.points.len())?;
-    let coords: Vec<f64> = frame
-        .points
-        .as_flattened()
-        .iter()
-        .map(|&x| f64::from(x))
-        .collect();
+    let coords: Vec<f64> = frame.points.as_flattened().iter().map(|&x| f64::from(x)).collect();
     match bounds(&coords, 3) {
-        Some((lo, hi)) => writeln!(
-            s,
-            "bounds: {} .. {} m",
-            Values(&lo, true),
-            Values(&hi, true)
-        )?,
+        Some((lo, hi)) => writeln!(s, "bounds: {} .. {} m", Values(&lo, true), Values(&hi, true))?,
         None => writeln!(s, "bounds: -")?,
     }
     writeln!(s, "arrays: {}", frame.arrays.len())?;
     for a in &frame.arrays {
-        let unit = if a.unit.is_empty() {
-            "-"
-        } else {
-            a.unit.as_str()
-        };
+        let unit = if a.unit.is_empty() { "-" } else { a.unit.as_str() };
         let (values, is_f32): (Vec<f64>, bool) = match &a.data {
             ArrayData::F32(v) => (v.iter().map(|&x| f64::from(x)).collect(), true),
             ArrayData::U32(v) => (v.iter().map(|&x| f64::from(x)).collect(), false),
             ArrayData::U8(v) => (v.iter().map(|&x| f64::from(x)).collect(), false),
         };
-        write!(
-            s,
-            "  {:<16} {} x {:<3}  unit {:<8}",
-            a.name,
-            a.components,
-            dtype_name(&a.data),
-            unit
-        )?;
+        write!(s, "  {:<16} {} x {:<3}  unit {:<8}", a.name, a.components, dtype_name(&a.data), unit)?;
         match bounds(&values, a.components) {
-            Some((lo, hi)) => write!(
-                s,
-                "  min {}  max {}",
-                Values(&lo, is_f32),
-                Values(&hi, is_f32)
-            )?,
+            Some((lo, hi)) => write!(s, "  min {}  max {}", Values(&lo, is_f32), Values(&hi, is_f32))?,
             None => write!(s, "  min -  max -")?,
         }
         let nans = values.iter().filter(|x| x.is_nan()).count();
@@ -146,10 +116,7 @@ fn summarize(s: &mut String, path: &Path, frame: &Frame) -> fmt::Result {
 fn kind_counts(values: &[f64]) -> String {
     let mut counts: Vec<(f64, usize)> = Vec::new();
     for &v in values {
-        match counts
-            .iter_mut()
-            .find(|(k, _)| *k == v || (k.is_nan() && v.is_nan()))
-        {
+        match counts.iter_mut().find(|(k, _)| *k == v || (k.is_nan() && v.is_nan())) {
             Some((_, c)) => *c += 1,
             None => counts.push((v, 1)),
         }
@@ -166,10 +133,7 @@ fn kind_counts(values: &[f64]) -> String {
             format!("kind {k}")
         }
     };
-    let parts: Vec<String> = counts
-        .iter()
-        .map(|&(k, c)| format!("{} {c}", named(k)))
-        .collect();
+    let parts: Vec<String> = counts.iter().map(|&(k, c)| format!("{} {c}", named(k))).collect();
     if parts.is_empty() {
         "no points".to_string()
     } else {
@@ -234,9 +198,7 @@ fn dtype_name(data: &ArrayData) -> &'static str {
 
 /// `.<file name>.tmp` next to `path`.
 fn temp_path(path: &Path) -> Result<PathBuf, IoError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| IoError::new(path, "not a file name"))?;
+    let name = path.file_name().ok_or_else(|| IoError::new(path, "not a file name"))?;
     let mut tmp = OsString::from(".");
     tmp.push(name);
     tmp.push(".tmp");
@@ -249,10 +211,7 @@ fn check_frame(frame: &Frame) -> Result<(), String> {
     i64::try_from(frame.step).map_err(|_| format!("step {} does not fit in int64", frame.step))?;
     for (i, a) in frame.arrays.iter().enumerate() {
         if a.name.is_empty() || a.name == "." || a.name.contains('/') || a.name.contains('\0') {
-            return Err(format!(
-                "array name {:?} is not a valid HDF5 dataset name",
-                a.name
-            ));
+            return Err(format!("array name {:?} is not a valid HDF5 dataset name", a.name));
         }
         if frame.arrays[..i].iter().any(|b| b.name == a.name) {
             return Err(format!("array name {:?} appears twice", a.name));
@@ -290,15 +249,12 @@ fn write_file(tmp: &Path, frame: &Frame) -> Result<(), String> {
     let file = File::create(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
     write_contents(&file, frame)?;
     // Closing flushes: a full disk may only show up here.
-    file.close()
-        .ctx(format_args!("cannot close {}", tmp.display()))
+    file.close().ctx(format_args!("cannot close {}", tmp.display()))
 }
 
 /// Forces the closed file's data to disk before the rename makes it visible.
 fn sync_file(tmp: &Path) -> Result<(), String> {
-    fs::File::open(tmp)
-        .and_then(|f| f.sync_all())
-        .map_err(|e| format!("cannot sync {}: {e}", tmp.display()))
+    fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| format!("cannot sync {}: {e}", tmp.display()))
 }
 
 fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
@@ -311,10 +267,7 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
     write_scalar_attr(file, "step", &step)?;
 
     let vtk = file.create_group("VTKHDF").ctx("cannot create /VTKHDF")?;
-    vtk.new_attr_builder()
-        .with_data(&VERSION[..])
-        .create("Version")
-        .ctx("cannot write /VTKHDF@Version")?;
+    vtk.new_attr_builder().with_data(&VERSION[..]).create("Version").ctx("cannot write /VTKHDF@Version")?;
     let poly_data = FixedAscii::<8>::from_ascii("PolyData").map_err(|e| e.to_string())?;
     vtk.new_attr::<FixedAscii<8>>()
         .shape(())
@@ -326,9 +279,7 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
     write_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3])?;
 
     for topology in TOPOLOGIES {
-        let g = vtk
-            .create_group(topology)
-            .ctx(format_args!("cannot create /VTKHDF/{topology}"))?;
+        let g = vtk.create_group(topology).ctx(format_args!("cannot create /VTKHDF/{topology}"))?;
         // One vertex cell per point; the other topologies are empty.
         let cells = if topology == "Vertices" { n } else { 0 };
         let cells_i64 = cells as i64;
@@ -346,26 +297,17 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
         .create("PointData")
         .ctx("cannot create /VTKHDF/PointData")?;
     for a in &frame.arrays {
-        let shape: &[usize] = if a.components == 1 {
-            &[n]
-        } else {
-            &[n, a.components]
-        };
+        let shape: &[usize] = if a.components == 1 { &[n] } else { &[n, a.components] };
         let ds = match &a.data {
             ArrayData::F32(v) => write_dataset(&point_data, &a.name, v, shape)?,
             ArrayData::U32(v) => write_dataset(&point_data, &a.name, v, shape)?,
             ArrayData::U8(v) => write_dataset(&point_data, &a.name, v, shape)?,
         };
-        let unit: VarLenUnicode = a
-            .unit
-            .parse()
-            .map_err(|e| format!("unit of {:?}: {e}", a.name))?;
+        let unit: VarLenUnicode = a.unit.parse().map_err(|e| format!("unit of {:?}: {e}", a.name))?;
         write_scalar_attr(&ds, "unit", &unit)?;
     }
 
-    let field_data = vtk
-        .create_group("FieldData")
-        .ctx("cannot create /VTKHDF/FieldData")?;
+    let field_data = vtk.create_group("FieldData").ctx("cannot create /VTKHDF/FieldData")?;
     write_dataset(&field_data, "time", &[frame.time], &[1])?;
     write_dataset(&field_data, "step", &[step], &[1])?;
     Ok(())
@@ -380,18 +322,9 @@ fn write_scalar_attr<T: H5Type>(loc: &Location, name: &str, value: &T) -> Result
 }
 
 /// A contiguous dataset of `shape` holding `data` (row-major).
-fn write_dataset<T: H5Type>(
-    group: &Group,
-    name: &str,
-    data: &[T],
-    shape: &[usize],
-) -> Result<Dataset, String> {
+fn write_dataset<T: H5Type>(group: &Group, name: &str, data: &[T], shape: &[usize]) -> Result<Dataset, String> {
     let what = || format!("cannot write {}/{name}", group.name());
-    let ds = group
-        .new_dataset::<T>()
-        .shape(shape)
-        .create(name)
-        .ctx(what())?;
+    let ds = group.new_dataset::<T>().shape(shape).create(name).ctx(what())?;
     if !data.is_empty() {
         ds.as_writer().write_raw(data).ctx(what())?;
     }
@@ -399,9 +332,7 @@ fn write_dataset<T: H5Type>(
 }
 
 fn read_file(file: &File) -> Result<Frame, String> {
-    let vtk = file
-        .group("VTKHDF")
-        .map_err(|_| "no /VTKHDF group: not a VTKHDF file".to_string())?;
+    let vtk = file.group("VTKHDF").map_err(|_| "no /VTKHDF group: not a VTKHDF file".to_string())?;
     let kind = read_string_attr(&vtk, "Type")?;
     if kind != "PolyData" {
         return Err(format!("/VTKHDF@Type is {kind:?}, expected \"PolyData\""));
@@ -410,31 +341,19 @@ fn read_file(file: &File) -> Result<Frame, String> {
     let points_ds = open_dataset(&vtk, "Points")?;
     let n = match points_ds.shape()[..] {
         [n, 3] => n,
-        ref shape => {
-            return Err(format!(
-                "/VTKHDF/Points has shape {shape:?}, expected [N, 3]"
-            ))
-        }
+        ref shape => return Err(format!("/VTKHDF/Points has shape {shape:?}, expected [N, 3]")),
     };
     let flat: Vec<f32> = read_values(&points_ds, "/VTKHDF/Points", Element::Float)?;
     let points = flat.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
 
-    let counts: Vec<i64> = read_values(
-        &open_dataset(&vtk, "NumberOfPoints")?,
-        "/VTKHDF/NumberOfPoints",
-        Element::Int,
-    )?;
+    let counts: Vec<i64> = read_values(&open_dataset(&vtk, "NumberOfPoints")?, "/VTKHDF/NumberOfPoints", Element::Int)?;
     if counts.iter().sum::<i64>() != n as i64 {
-        return Err(format!(
-            "/VTKHDF/NumberOfPoints is {counts:?} but Points has {n} rows"
-        ));
+        return Err(format!("/VTKHDF/NumberOfPoints is {counts:?} but Points has {n} rows"));
     }
 
     let mut arrays = Vec::new();
     if vtk.link_exists("PointData") {
-        let point_data = vtk
-            .group("PointData")
-            .ctx("cannot open /VTKHDF/PointData")?;
+        let point_data = vtk.group("PointData").ctx("cannot open /VTKHDF/PointData")?;
         let names = point_data
             .member_names_by(IndexType::CreationOrder, IterationOrder::Increasing)
             .or_else(|_| point_data.member_names())
@@ -444,25 +363,16 @@ fn read_file(file: &File) -> Result<Frame, String> {
         }
     }
 
-    let field_data = vtk
-        .group("FieldData")
-        .map_err(|_| "no /VTKHDF/FieldData group (time and step)".to_string())?;
+    let field_data = vtk.group("FieldData").map_err(|_| "no /VTKHDF/FieldData group (time and step)".to_string())?;
     let time = read_single::<f64>(&field_data, "time", Element::Float)?;
     let step = read_single::<i64>(&field_data, "step", Element::Int)?;
     let step = u64::try_from(step).map_err(|_| format!("/VTKHDF/FieldData/step is {step}"))?;
 
-    Ok(Frame {
-        time,
-        step,
-        points,
-        arrays,
-    })
+    Ok(Frame { time, step, points, arrays })
 }
 
 fn open_dataset(group: &Group, name: &str) -> Result<Dataset, String> {
-    group
-        .dataset(name)
-        .map_err(|_| format!("missing dataset {}/{name}", group.name()))
+    group.dataset(name).map_err(|_| format!("missing dataset {}/{name}", group.name()))
 }
 
 /// The element class a dataset must have to be read as a given Rust type.
@@ -474,16 +384,10 @@ enum Element {
 
 /// Reads all values of `ds` as `T`, converting within the element class only.
 fn read_values<T: H5Type>(ds: &Dataset, what: &str, class: Element) -> Result<Vec<T>, String> {
-    let desc = ds
-        .dtype()
-        .and_then(|t| t.to_descriptor())
-        .ctx(format_args!("{what}: element type"))?;
+    let desc = ds.dtype().and_then(|t| t.to_descriptor()).ctx(format_args!("{what}: element type"))?;
     let ok = match class {
         Element::Float => matches!(desc, TypeDescriptor::Float(_)),
-        Element::Int => matches!(
-            desc,
-            TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)
-        ),
+        Element::Int => matches!(desc, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)),
     };
     if !ok {
         return Err(format!("{what} has element type {desc}"));
@@ -508,56 +412,30 @@ fn read_array(group: &Group, name: &str, n: usize) -> Result<PointArray, String>
     let components = match ds.shape()[..] {
         [rows] if rows == n => 1,
         [rows, c] if rows == n && c > 0 => c,
-        ref shape => {
-            return Err(format!(
-                "{what} has shape {shape:?}, expected [{n}] or [{n}, components]"
-            ))
-        }
+        ref shape => return Err(format!("{what} has shape {shape:?}, expected [{n}] or [{n}, components]")),
     };
-    let desc = ds
-        .dtype()
-        .and_then(|t| t.to_descriptor())
-        .ctx(format_args!("{what}: element type"))?;
+    let desc = ds.dtype().and_then(|t| t.to_descriptor()).ctx(format_args!("{what}: element type"))?;
     let data = match desc {
         TypeDescriptor::Float(FloatSize::U4) => ArrayData::F32(ds.read_raw().ctx(&what)?),
         TypeDescriptor::Unsigned(IntSize::U4) => ArrayData::U32(ds.read_raw().ctx(&what)?),
         TypeDescriptor::Unsigned(IntSize::U1) => ArrayData::U8(ds.read_raw().ctx(&what)?),
-        other => {
-            return Err(format!(
-                "{what} has element type {other}, expected f32, u32 or u8"
-            ))
-        }
+        other => return Err(format!("{what} has element type {other}, expected f32, u32 or u8")),
     };
-    let unit = if ds
-        .attr_names()
-        .map(|a| a.iter().any(|s| s == "unit"))
-        .unwrap_or(false)
-    {
+    let unit = if ds.attr_names().map(|a| a.iter().any(|s| s == "unit")).unwrap_or(false) {
         read_string_attr(&ds, "unit")?
     } else {
         String::new()
     };
-    Ok(PointArray {
-        name: name.to_string(),
-        unit,
-        components,
-        data,
-    })
+    Ok(PointArray { name: name.to_string(), unit, components, data })
 }
 
 /// Reads a string attribute stored as any HDF5 string type (fixed or
 /// variable length, ASCII or UTF-8), scalar or of shape [1].
 fn read_string_attr(loc: &Location, name: &str) -> Result<String, String> {
     let what = format!("{}@{name}", loc.name());
-    let attr = loc
-        .attr(name)
-        .map_err(|_| format!("missing attribute {what}"))?;
+    let attr = loc.attr(name).map_err(|_| format!("missing attribute {what}"))?;
     let desc = attr.dtype().and_then(|t| t.to_descriptor()).ctx(&what)?;
-    let first = |v: Vec<String>| {
-        v.into_iter()
-            .next()
-            .ok_or_else(|| format!("{what} is empty"))
-    };
+    let first = |v: Vec<String>| v.into_iter().next().ok_or_else(|| format!("{what} is empty"));
     match desc {
         TypeDescriptor::FixedAscii(_) => {
             let v: Vec<FixedAscii<1024>> = attr.read_raw().ctx(&what)?;

@@ -47,11 +47,7 @@ impl Simulation {
         let k = scene.phases.len();
 
         let mut fluid = FluidStore::default();
-        for (p, v) in sampled_fluid
-            .positions
-            .iter()
-            .zip(&sampled_fluid.velocities)
-        {
+        for (p, v) in sampled_fluid.positions.iter().zip(&sampled_fluid.velocities) {
             fluid.x.push(p[0]);
             fluid.y.push(p[1]);
             fluid.z.push(p[2]);
@@ -61,9 +57,7 @@ impl Simulation {
         }
         fluid.pressure = vec![0.0; nf];
         fluid.density = vec![0.0; nf];
-        fluid.alpha = (0..k)
-            .map(|ph| sampled_fluid.fractions.iter().map(|f| f[ph]).collect())
-            .collect();
+        fluid.alpha = (0..k).map(|ph| sampled_fluid.fractions.iter().map(|f| f[ph]).collect()).collect();
         fluid.id = (0..nf as u32).collect();
 
         let mut walls = WallStore::default();
@@ -89,11 +83,7 @@ impl Simulation {
         let sorted: Vec<u64> = work.sort.iter().map(|&(k, _)| k).collect();
         work.wall_grid.build(&sorted, params.kernel.support);
         let mut bb = PairLists::default();
-        let pts = Points {
-            x: &walls.x,
-            y: &walls.y,
-            z: &walls.z,
-        };
+        let pts = Points { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut bb, pts, pts, &work.wall_grid, &params.kernel);
         // Rest volume of a wall particle (PHYSICS.md §2.3, Akinci-style):
         // V0_b = gamma / sum_{b'} W_bb' over the wall (incl. self), with gamma
@@ -110,19 +100,12 @@ impl Simulation {
             }
         }
         for (v, s) in walls.rest_volume.iter_mut().zip(&sum_w) {
-            *v = if *s > 0.0 {
-                gamma / s
-            } else {
-                params.cell_volume()
-            };
+            *v = if *s > 0.0 { gamma / s } else { params.cell_volume() };
         }
         for (b, blk) in bb.used().iter().enumerate() {
             for q in 0..blk.start.len().saturating_sub(1) {
                 let i = b * BLOCK + q;
-                walls.sigma_static[i] = blk
-                    .range(q)
-                    .map(|p| walls.rest_volume[blk.j[p] as usize] * blk.w[p])
-                    .sum();
+                walls.sigma_static[i] = blk.range(q).map(|p| walls.rest_volume[blk.j[p] as usize] * blk.w[p]).sum();
             }
         }
         let rho_ref = params.phase_density.first().copied().unwrap_or(1000.0);

@@ -42,14 +42,7 @@ impl Simulation {
     /// Advances by one step of length [`Simulation::dt`], then picks the next dt.
     pub fn step(&mut self) -> Result<&StepStats, StepError> {
         let dt = self.dt;
-        let Simulation {
-            params,
-            fluid,
-            walls,
-            work,
-            arena,
-            ..
-        } = self;
+        let Simulation { params, fluid, walls, work, arena, .. } = self;
         let mut stats = step_passes(params, fluid, walls, work, arena, dt);
         arena.reset();
         self.time += dt as f64;
@@ -70,9 +63,7 @@ impl Simulation {
     /// Largest fluid speed, m/s (NaN if any velocity is NaN).
     pub fn max_speed(&self) -> f32 {
         let f = &self.fluid;
-        max_f32(f.len(), |i| {
-            (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt()
-        })
+        max_f32(f.len(), |i| (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt())
     }
 
     /// The time step rule of PHYSICS.md §7 for one or more phases without
@@ -103,9 +94,7 @@ impl Simulation {
         let bad = (0..f.len())
             .find(|&i| {
                 let s = (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt();
-                !s.is_finite()
-                    || s > limit
-                    || !(f.x[i].is_finite() && f.y[i].is_finite() && f.z[i].is_finite())
+                !s.is_finite() || s > limit || !(f.x[i].is_finite() && f.y[i].is_finite() && f.z[i].is_finite())
             })
             .unwrap_or(0);
         StepError {
@@ -152,16 +141,8 @@ fn step_passes(
         w.keys.clear();
         w.keys.extend(w.sort.iter().map(|&(k, _)| k));
         w.fluid_grid.build(&w.keys, support);
-        let fp = Points {
-            x: &fluid.x,
-            y: &fluid.y,
-            z: &fluid.z,
-        };
-        let wp = Points {
-            x: &walls.x,
-            y: &walls.y,
-            z: &walls.z,
-        };
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, &p.kernel);
         build_pairs(&mut w.fb, fp, wp, &w.wall_grid, &p.kernel);
         // Active walls: those in a cell next to a fluid cell.
@@ -184,22 +165,8 @@ fn step_passes(
     let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
     let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
     tm.time(pass::NEIGHBORS, || {
-        let fp = Points {
-            x: &fluid.x,
-            y: &fluid.y,
-            z: &fluid.z,
-        };
-        build_pairs(
-            &mut w.bf,
-            Points {
-                x: ax,
-                y: ay,
-                z: az,
-            },
-            fp,
-            &w.fluid_grid,
-            &p.kernel,
-        );
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, &p.kernel);
     });
 
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
@@ -239,31 +206,21 @@ fn step_passes(
     // Pass 2 (4a-b): volumes V = V0 / sum_j V0_j W_ij, densities m / V.
     let sigma = zeros(arena, n);
     let vol = zeros(arena, n);
+    let vm = zeros(arena, n);
     let sigma_b = zeros(arena, na);
     let vol_b = zeros(arena, na);
     let vol_b_full = zeros(arena, walls.len());
     tm.time(pass::DENSITIES, || {
         iisph::fluid_volumes(&w.ff, &w.fb, v0, &walls.rest_volume, sigma, vol);
-        iisph::wall_volumes(
-            &w.bf,
-            &w.active,
-            &walls.sigma_static,
-            &walls.rest_volume,
-            v0,
-            sigma_b,
-            vol_b,
-        );
+        iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, v0, sigma_b, vol_b);
         let rho_ref = p.phase_density.first().copied().unwrap_or(0.0);
         for (k, &b) in w.active.iter().enumerate() {
             vol_b_full[b as usize] = vol_b[k];
             walls.density[b as usize] = rho_ref * sigma_b[k];
         }
-        fluid.density.par_iter_mut().enumerate().for_each(|(i, d)| {
-            *d = if vol[i] > 0.0 {
-                mass[i] / vol[i]
-            } else {
-                rest_density[i]
-            };
+        fluid.density.par_iter_mut().zip(vm.par_iter_mut()).enumerate().for_each(|(i, (d, vm))| {
+            *d = if vol[i] > 0.0 { mass[i] / vol[i] } else { rest_density[i] };
+            *vm = if mass[i] > 0.0 { vol[i] / mass[i] } else { 0.0 };
         });
     });
 
@@ -274,17 +231,8 @@ fn step_passes(
     tm.time(pass::VISCOSITY, || {
         let inp = ViscosityInput {
             ff: &w.ff,
-            x: Points {
-                x: &fluid.x,
-                y: &fluid.y,
-                z: &fluid.z,
-            },
-            u: Vel {
-                x: &fluid.ux,
-                y: &fluid.uy,
-                z: &fluid.uz,
-            },
-            mass,
+            x: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+            u: Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz },
             rest_density,
             mu,
             h: p.h,
@@ -293,11 +241,7 @@ fn step_passes(
         };
         predict_velocity(&inp, usx, usy, usz);
     });
-    let u_star = Vel {
-        x: usx,
-        y: usy,
-        z: usz,
-    };
+    let u_star = Vel { x: usx, y: usy, z: usz };
 
     // Pass 4c: pair volumes, sources (P-Eqs. 26, 29) and diagonals.
     let src = zeros(arena, n);
@@ -309,17 +253,9 @@ fn step_passes(
         iisph::scale_by_pair_volume(&mut w.ff, vol, vol);
         iisph::scale_by_pair_volume(&mut w.fb, vol, vol_b_full);
         iisph::scale_by_pair_volume(&mut w.bf, vol_b, vol);
-        let rows = FluidRows {
-            ff: &w.ff,
-            fb: &w.fb,
-            u_star,
-            vol,
-            mass,
-            alpha_f,
-            sigma,
-        };
+        let rows = FluidRows { ff: &w.ff, fb: &w.fb, u_star, vol, vm, alpha_f, sigma };
         iisph::fluid_source_diagonal(&rows, dt, src, diag);
-        iisph::wall_source_diagonal(&w.bf, u_star, vol, mass, sigma_b, dt, src_b, diag_b);
+        iisph::wall_source_diagonal(&w.bf, u_star, vm, sigma_b, dt, src_b, diag_b);
         // Warm start from half the last pressure (PHYSICS.md §2.2).
         fluid.pressure.par_iter_mut().for_each(|x| *x *= 0.5);
         for (k, &b) in w.active.iter().enumerate() {
@@ -342,33 +278,9 @@ fn step_passes(
     tm.time(pass::PRESSURE_SOLVE, || {
         let mut it = 0;
         loop {
-            iisph::pressure_acceleration(
-                &w.ff,
-                &w.fb,
-                vol,
-                mass,
-                &fluid.pressure,
-                &walls.pressure,
-                apx,
-                apy,
-                apz,
-            );
-            let ap = Vel {
-                x: apx,
-                y: apy,
-                z: apz,
-            };
-            iisph::fluid_jacobi(
-                &w.ff,
-                &w.fb,
-                ap,
-                src,
-                diag,
-                dt,
-                p.omega,
-                &mut fluid.pressure,
-                err,
-            );
+            iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, apx, apy, apz);
+            let ap = Vel { x: apx, y: apy, z: apz };
+            iisph::fluid_jacobi(&w.ff, &w.fb, ap, src, diag, dt, p.omega, &mut fluid.pressure, err);
             iisph::wall_jacobi(&w.bf, ap, src_b, diag_b, dt, p.omega, p_b);
             for (k, &b) in w.active.iter().enumerate() {
                 walls.pressure[b as usize] = p_b[k];
@@ -381,17 +293,7 @@ fn step_passes(
             }
         }
         st.iterations = it;
-        iisph::pressure_acceleration(
-            &w.ff,
-            &w.fb,
-            vol,
-            mass,
-            &fluid.pressure,
-            &walls.pressure,
-            apx,
-            apy,
-            apz,
-        );
+        iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, apx, apy, apz);
     });
 
     // Pass 13: symplectic Euler.
@@ -404,16 +306,7 @@ fn step_passes(
             uy: &mut fluid.uy,
             uz: &mut fluid.uz,
         };
-        integrate(
-            s,
-            u_star,
-            Vel {
-                x: apx,
-                y: apy,
-                z: apz,
-            },
-            dt,
-        );
+        integrate(s, u_star, Vel { x: apx, y: apy, z: apz }, dt);
     });
     st
 }
@@ -427,10 +320,7 @@ fn near_occupied(grid: &porosph_kernels::grid::CellGrid, c: [u32; 3]) -> bool {
                 if q.iter().any(|&v| !(0..(1 << 21)).contains(&v)) {
                     continue;
                 }
-                if grid
-                    .find(morton([q[0] as u32, q[1] as u32, q[2] as u32]))
-                    .is_some()
-                {
+                if grid.find(morton([q[0] as u32, q[1] as u32, q[2] as u32])).is_some() {
                     return true;
                 }
             }

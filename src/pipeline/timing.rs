@@ -8,16 +8,8 @@ use std::time::Instant;
 /// bookkeeping, 2 densities and volumes (4a-b), 3 viscosity and u*, 4c
 /// sources and diagonal, 5 the IISPH Jacobi loop, 13 integration, 14 the
 /// next time step (CFL).
-pub const PASSES: [&str; 8] = [
-    "neighbors",
-    "phases",
-    "densities",
-    "viscosity",
-    "ppe_setup",
-    "pressure_solve",
-    "integrate",
-    "time_step",
-];
+pub const PASSES: [&str; 8] =
+    ["neighbors", "phases", "densities", "viscosity", "ppe_setup", "pressure_solve", "integrate", "time_step"];
 
 /// Index of each pass in [`PASSES`].
 pub mod pass {

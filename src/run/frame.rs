@@ -11,12 +11,7 @@ pub mod kind {
 }
 
 fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArray {
-    PointArray {
-        name: name.to_string(),
-        unit: unit.to_string(),
-        components,
-        data,
-    }
+    PointArray { name: name.to_string(), unit: unit.to_string(), components, data }
 }
 
 impl Simulation {
@@ -60,27 +55,12 @@ impl Simulation {
             points,
             arrays: vec![
                 array("velocity", "m/s", 3, ArrayData::F32(velocity)),
-                array(
-                    "pressure",
-                    "Pa",
-                    1,
-                    ArrayData::F32(cat(&f.pressure, &w.pressure)),
-                ),
-                array(
-                    "density",
-                    "kg/m^3",
-                    1,
-                    ArrayData::F32(cat(&f.density, &w.density)),
-                ),
+                array("pressure", "Pa", 1, ArrayData::F32(cat(&f.pressure, &w.pressure))),
+                array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density))),
                 array("alpha", "", k, ArrayData::F32(alpha)),
                 array("color", "", 3, ArrayData::F32(color)),
                 array("kind", "", 1, ArrayData::U8(kinds)),
-                array(
-                    "id",
-                    "",
-                    1,
-                    ArrayData::U32(f.id.iter().chain(&w.id).copied().collect()),
-                ),
+                array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).copied().collect())),
             ],
         }
     }

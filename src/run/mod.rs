@@ -62,18 +62,10 @@ impl From<IoError> for RunError {
 
 /// Header of `stats.csv`.
 pub fn stats_columns() -> Vec<String> {
-    let mut c: Vec<String> = [
-        "step",
-        "time",
-        "dt",
-        "iterations",
-        "density_error",
-        "max_speed",
-        "fluid_particles",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    let mut c: Vec<String> = ["step", "time", "dt", "iterations", "density_error", "max_speed", "fluid_particles"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c
@@ -92,9 +84,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     let mut stats = StatsWriter::create(&opts.out.join("stats.csv"), &stats_columns())?;
     let mut series = SeriesWriter::new(&frames_dir.join("frames.vtkhdf.series"));
     let end_time = opts.until.unwrap_or(sim.scene.simulation.end_time);
-    let frame_every = opts
-        .frame_every
-        .unwrap_or(sim.scene.simulation.frame_interval);
+    let frame_every = opts.frame_every.unwrap_or(sim.scene.simulation.frame_interval);
 
     let bar = if opts.quiet {
         ProgressBar::hidden()
@@ -105,24 +95,21 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         };
         let b = ProgressBar::new(len);
         b.set_style(
-            ProgressStyle::with_template(&format!(
-                "{{bar:40}} {{pos}}/{{len}} {unit}  {{msg}}  eta {{eta}}"
-            ))
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(&format!("{{bar:40}} {{pos}}/{{len}} {unit}  {{msg}}  eta {{eta}}"))
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     };
 
     let mut frames = 0u64;
     let mut next_frame = 0.0f64;
-    let write =
-        |sim: &Simulation, frames: &mut u64, series: &mut SeriesWriter| -> Result<(), IoError> {
-            let name = format!("frame_{:05}.vtkhdf", *frames);
-            write_frame(&frames_dir.join(&name), &sim.frame())?;
-            series.add(&name, sim.time)?;
-            *frames += 1;
-            Ok(())
-        };
+    let write = |sim: &Simulation, frames: &mut u64, series: &mut SeriesWriter| -> Result<(), IoError> {
+        let name = format!("frame_{:05}.vtkhdf", *frames);
+        write_frame(&frames_dir.join(&name), &sim.frame())?;
+        series.add(&name, sim.time)?;
+        *frames += 1;
+        Ok(())
+    };
     if sim.time >= next_frame {
         write(sim, &mut frames, &mut series)?;
         next_frame = sim.time + frame_every;
@@ -170,20 +157,10 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             Some(_) => sim.step - first_step,
             None => (sim.time * 1000.0).round() as u64,
         });
-        bar.set_message(format!(
-            "t = {:.3} s, {:.1} steps/s, {} it",
-            sim.time,
-            taken / el,
-            st.iterations
-        ));
+        bar.set_message(format!("t = {:.3} s, {:.1} steps/s, {} it", sim.time, taken / el, st.iterations));
     }
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
     let steps = sim.step - first_step;
-    Ok(RunSummary {
-        steps,
-        frames,
-        wall_seconds: wall,
-        particle_steps_per_second: n * steps as f64 / wall.max(1e-9),
-    })
+    Ok(RunSummary { steps, frames, wall_seconds: wall, particle_steps_per_second: n * steps as f64 / wall.max(1e-9) })
 }

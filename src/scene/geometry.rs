@@ -100,9 +100,7 @@ pub fn sample_walls(scene: &Scene) -> SampledWalls {
     for wall in &scene.walls {
         let mut candidates = Vec::new();
         match &wall.shape {
-            Shape::Box { min, max } if wall.container => {
-                container_lattice(min, max, d, wall.open_top, &mut candidates)
-            }
+            Shape::Box { min, max } if wall.container => container_lattice(min, max, d, wall.open_top, &mut candidates),
             Shape::Box { min, max } => box_lattice(min, max, d, Some(2), &mut candidates),
             shape => global_lattice(shape, d, &mut candidates, |s| s > -2.0 * d && s <= 0.0),
         }
@@ -137,12 +135,7 @@ pub fn sdf(shape: &Shape, p: [f32; 3]) -> f32 {
             let v = [0, 1, 2].map(|i| p[i] - f64::from(center[i]));
             norm(v) - f64::from(*radius)
         }
-        Shape::Cylinder {
-            base,
-            axis,
-            radius,
-            height,
-        } => {
+        Shape::Cylinder { base, axis, radius, height } => {
             let v = [0, 1, 2].map(|i| p[i] - f64::from(base[i]));
             let a = axis.map(f64::from);
             let t = v[0] * a[0] + v[1] * a[1] + v[2] * a[2];
@@ -190,13 +183,7 @@ fn box_coord(lo: f32, i: i64, d: f64) -> f32 {
 /// The lattice points of a box, `min + (i + 1/2) d` with `i in 0..n` per axis.
 /// With `layers = Some(L)`, only the points fewer than L layers from a face
 /// (index < L or >= n - L on some axis); with `None`, all of them.
-fn box_lattice(
-    min: &[f32; 3],
-    max: &[f32; 3],
-    d: f64,
-    layers: Option<i64>,
-    out: &mut Vec<[f32; 3]>,
-) {
+fn box_lattice(min: &[f32; 3], max: &[f32; 3], d: f64, layers: Option<i64>, out: &mut Vec<[f32; 3]>) {
     let n = [0, 1, 2].map(|a| cells(min[a], max[a], d));
     let layers = layers.unwrap_or(i64::MAX);
     let depth = |i: i64, n: i64| i.min(n - 1 - i);
@@ -220,13 +207,7 @@ fn box_lattice(
 /// The two layers of lattice points outside a container box: every index in
 /// `-2..=n+1`, at least one outside `0..n`; with `open_top`, the y index stops
 /// at `n - 1`.
-fn container_lattice(
-    min: &[f32; 3],
-    max: &[f32; 3],
-    d: f64,
-    open_top: bool,
-    out: &mut Vec<[f32; 3]>,
-) {
+fn container_lattice(min: &[f32; 3], max: &[f32; 3], d: f64, open_top: bool, out: &mut Vec<[f32; 3]>) {
     let n = [0, 1, 2].map(|a| cells(min[a], max[a], d));
     let inside = |i: i64, n: i64| (0..n).contains(&i);
     let j_end = if open_top { n[1] - 1 } else { n[1] + 1 };
@@ -281,17 +262,9 @@ fn bounds(shape: &Shape) -> ([f64; 3], [f64; 3]) {
         Shape::Box { min, max } => (min.map(f64::from), max.map(f64::from)),
         Shape::Sphere { center, radius } => {
             let r = f64::from(*radius);
-            (
-                center.map(|c| f64::from(c) - r),
-                center.map(|c| f64::from(c) + r),
-            )
+            (center.map(|c| f64::from(c) - r), center.map(|c| f64::from(c) + r))
         }
-        Shape::Cylinder {
-            base,
-            axis,
-            radius,
-            height,
-        } => {
+        Shape::Cylinder { base, axis, radius, height } => {
             let mut lo = [0.0; 3];
             let mut hi = [0.0; 3];
             for i in 0..3 {
@@ -317,10 +290,7 @@ struct PointGrid {
 
 impl PointGrid {
     fn new(cell: f64) -> Self {
-        PointGrid {
-            cell,
-            cells: HashMap::new(),
-        }
+        PointGrid { cell, cells: HashMap::new() }
     }
 
     fn key(&self, p: [f32; 3]) -> [i64; 3] {
@@ -341,11 +311,7 @@ impl PointGrid {
         for dz in -1..=1i64 {
             for dy in -1..=1i64 {
                 for dx in -1..=1i64 {
-                    let key = [
-                        c[0].saturating_add(dx),
-                        c[1].saturating_add(dy),
-                        c[2].saturating_add(dz),
-                    ];
+                    let key = [c[0].saturating_add(dx), c[1].saturating_add(dy), c[2].saturating_add(dz)];
                     let Some(points) = self.cells.get(&key) else {
                         continue;
                     };

@@ -77,12 +77,7 @@ pub enum Shape {
     Sphere { center: [f32; 3], radius: f32 },
     /// `cylinder = { base = [..], axis = [..], radius = r, height = l }`:
     /// a cylinder from `base` along the unit vector `axis` for `height`.
-    Cylinder {
-        base: [f32; 3],
-        axis: [f32; 3],
-        radius: f32,
-        height: f32,
-    },
+    Cylinder { base: [f32; 3], axis: [f32; 3], radius: f32, height: f32 },
 }
 
 /// `[[fluid]]`: a block of fluid particles.

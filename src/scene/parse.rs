@@ -73,21 +73,17 @@ impl Scene {
         let cx = Cx { file: origin };
         let root: Table = toml::from_str(text).map_err(|e| cx.syntax_error(text, &e))?;
         if root.is_empty() {
-            return Err(cx.err(
-                "",
-                "the scene is empty; it needs a [simulation] table and at least one [[phase]]",
-            ));
+            return Err(cx.err("", "the scene is empty; it needs a [simulation] table and at least one [[phase]]"));
         }
         cx.allow_keys("", &root, TOP_KEYS)?;
 
-        let simulation =
-            match root.get("simulation") {
-                Some(v) => cx.simulation("simulation", v)?,
-                None => return Err(cx.err(
-                    "simulation",
-                    "missing the required [simulation] table (particle_spacing, end_time, max_dt)",
-                )),
-            };
+        let simulation = match root.get("simulation") {
+            Some(v) => cx.simulation("simulation", v)?,
+            None => {
+                return Err(cx
+                    .err("simulation", "missing the required [simulation] table (particle_spacing, end_time, max_dt)"))
+            }
+        };
         let d = f64::from(simulation.particle_spacing);
 
         let phase_tables = match root.get("phase") {
@@ -95,10 +91,9 @@ impl Scene {
             None => Vec::new(),
         };
         if phase_tables.is_empty() {
-            return Err(cx.err(
-                "phase",
-                "no phases: at least one [[phase]] with name, density and viscosity is required",
-            ));
+            return Err(
+                cx.err("phase", "no phases: at least one [[phase]] with name, density and viscosity is required")
+            );
         }
         let mut phases: Vec<Phase> = Vec::with_capacity(phase_tables.len());
         for (i, tbl) in phase_tables.iter().enumerate() {
@@ -130,14 +125,7 @@ impl Scene {
             }
         }
 
-        Ok(Scene {
-            simulation,
-            phases,
-            fluids,
-            walls,
-            origin: origin.to_string(),
-            text: text.to_string(),
-        })
+        Ok(Scene { simulation, phases, fluids, walls, origin: origin.to_string(), text: text.to_string() })
     }
 }
 
@@ -189,11 +177,7 @@ struct Cx<'a> {
 
 impl Cx<'_> {
     fn err(&self, key: &str, reason: impl Into<String>) -> SceneError {
-        SceneError {
-            file: self.file.to_string(),
-            key: key.to_string(),
-            reason: reason.into(),
-        }
+        SceneError { file: self.file.to_string(), key: key.to_string(), reason: reason.into() }
     }
 
     /// A TOML syntax error, with the line and column it happened at.
@@ -202,9 +186,7 @@ impl Cx<'_> {
         let reason = match e.span() {
             Some(span) => {
                 let (line, column, content) = line_column(text, span.start);
-                format!(
-                    "TOML syntax error at line {line}, column {column}: {message} (line {line} reads `{content}`)"
-                )
+                format!("TOML syntax error at line {line}, column {column}: {message} (line {line} reads `{content}`)")
             }
             None => format!("TOML syntax error: {message}"),
         };
@@ -227,19 +209,10 @@ impl Cx<'_> {
     }
 
     /// A required key of `table`; `expected` says what it should hold.
-    fn required<'t>(
-        &self,
-        path: &str,
-        table: &'t Table,
-        key: &str,
-        expected: &str,
-    ) -> Result<&'t Value, SceneError> {
-        table.get(key).ok_or_else(|| {
-            self.err(
-                &join(path, key),
-                format!("missing required key `{key}` (expected {expected})"),
-            )
-        })
+    fn required<'t>(&self, path: &str, table: &'t Table, key: &str, expected: &str) -> Result<&'t Value, SceneError> {
+        table
+            .get(key)
+            .ok_or_else(|| self.err(&join(path, key), format!("missing required key `{key}` (expected {expected})")))
     }
 
     fn table<'v>(&self, key: &str, v: &'v Value) -> Result<&'v Table, SceneError> {
@@ -252,24 +225,14 @@ impl Cx<'_> {
     /// `[[name]]` entries: an array whose elements are all tables.
     fn array_of_tables<'v>(&self, key: &str, v: &'v Value) -> Result<Vec<&'v Table>, SceneError> {
         match v {
-            Value::Array(items) => items
-                .iter()
-                .enumerate()
-                .map(|(i, item)| self.table(&format!("{key}[{i}]"), item))
-                .collect(),
-            Value::Table(_) => Err(self.err(
-                key,
-                format!(
-                    "expected an array of tables (write [[{key}]]), found a single table ([{key}])"
-                ),
-            )),
-            other => Err(self.err(
-                key,
-                format!(
-                    "expected an array of tables ([[{key}]]), found {}",
-                    describe(other)
-                ),
-            )),
+            Value::Array(items) => {
+                items.iter().enumerate().map(|(i, item)| self.table(&format!("{key}[{i}]"), item)).collect()
+            }
+            Value::Table(_) => {
+                Err(self
+                    .err(key, format!("expected an array of tables (write [[{key}]]), found a single table ([{key}])")))
+            }
+            other => Err(self.err(key, format!("expected an array of tables ([[{key}]]), found {}", describe(other)))),
         }
     }
 
@@ -279,18 +242,10 @@ impl Cx<'_> {
             Value::Float(x) => *x,
             // Integers far beyond 2^53 lose precision; they are rejected by range checks.
             Value::Integer(i) => *i as f64,
-            other => {
-                return Err(self.err(
-                    key,
-                    format!("expected {what} (a number), found {}", describe(other)),
-                ))
-            }
+            other => return Err(self.err(key, format!("expected {what} (a number), found {}", describe(other)))),
         };
         if !x.is_finite() {
-            return Err(self.err(
-                key,
-                format!("expected a finite number, found {}", fmt_f64(x)),
-            ));
+            return Err(self.err(key, format!("expected a finite number, found {}", fmt_f64(x))));
         }
         Ok(x)
     }
@@ -299,10 +254,7 @@ impl Cx<'_> {
     fn f64_in(&self, key: &str, v: &Value, what: &str, range: Range) -> Result<f64, SceneError> {
         let x = self.number(key, v, what)?;
         if !range.contains(x) {
-            return Err(self.err(
-                key,
-                format!("expected {what}{}, found {}", range.text(), fmt_f64(x)),
-            ));
+            return Err(self.err(key, format!("expected {what}{}, found {}", range.text(), fmt_f64(x))));
         }
         Ok(x)
     }
@@ -323,10 +275,7 @@ impl Cx<'_> {
             ));
         }
         if !range.contains(f64::from(y)) {
-            return Err(self.err(
-                key,
-                format!("expected {what}{}, found {}", range.text(), fmt_f64(x)),
-            ));
+            return Err(self.err(key, format!("expected {what}{}, found {}", range.text(), fmt_f64(x))));
         }
         Ok(y)
     }
@@ -338,21 +287,14 @@ impl Cx<'_> {
             other => {
                 return Err(self.err(
                     key,
-                    format!(
-                        "expected {what} as an array of 3 numbers [x, y, z], found {}",
-                        describe(other)
-                    ),
+                    format!("expected {what} as an array of 3 numbers [x, y, z], found {}", describe(other)),
                 ))
             }
         };
         if items.len() != 3 {
-            return Err(self.err(
-                key,
-                format!(
-                    "expected {what} as an array of 3 numbers [x, y, z], found {}",
-                    describe(v)
-                ),
-            ));
+            return Err(
+                self.err(key, format!("expected {what} as an array of 3 numbers [x, y, z], found {}", describe(v)))
+            );
         }
         let mut out = [0.0f32; 3];
         for (i, item) in items.iter().enumerate() {
@@ -384,27 +326,15 @@ impl Cx<'_> {
     fn integer(&self, key: &str, v: &Value, what: &str, min: i64) -> Result<u32, SceneError> {
         match v {
             Value::Integer(i) if *i >= min && *i <= i64::from(u32::MAX) => Ok(*i as u32),
-            Value::Integer(i) => Err(self.err(
-                key,
-                format!("expected {what} (an integer >= {min}), found {i}"),
-            )),
-            other => Err(self.err(
-                key,
-                format!(
-                    "expected {what} (an integer >= {min}), found {}",
-                    describe(other)
-                ),
-            )),
+            Value::Integer(i) => Err(self.err(key, format!("expected {what} (an integer >= {min}), found {i}"))),
+            other => Err(self.err(key, format!("expected {what} (an integer >= {min}), found {}", describe(other)))),
         }
     }
 
     fn boolean(&self, key: &str, v: &Value) -> Result<bool, SceneError> {
         match v {
             Value::Boolean(b) => Ok(*b),
-            other => Err(self.err(
-                key,
-                format!("expected true or false, found {}", describe(other)),
-            )),
+            other => Err(self.err(key, format!("expected true or false, found {}", describe(other)))),
         }
     }
 
@@ -422,19 +352,11 @@ impl Cx<'_> {
             Range::Positive,
         )?;
         let end_what = "the end time in s";
-        let end_time = self.f64_in(
-            &key("end_time"),
-            self.required(path, t, "end_time", end_what)?,
-            end_what,
-            Range::Positive,
-        )?;
+        let end_time =
+            self.f64_in(&key("end_time"), self.required(path, t, "end_time", end_what)?, end_what, Range::Positive)?;
         let dt_what = "the largest time step in s";
-        let max_dt = self.f32_in(
-            &key("max_dt"),
-            self.required(path, t, "max_dt", dt_what)?,
-            dt_what,
-            Range::Positive,
-        )?;
+        let max_dt =
+            self.f32_in(&key("max_dt"), self.required(path, t, "max_dt", dt_what)?, dt_what, Range::Positive)?;
         if f64::from(max_dt) > end_time {
             return Err(self.err(
                 &key("max_dt"),
@@ -456,12 +378,7 @@ impl Cx<'_> {
             None => 0.001,
         };
         let frame_interval = match t.get("frame_interval") {
-            Some(v) => self.f64_in(
-                &key("frame_interval"),
-                v,
-                "the time between frames in s",
-                Range::Positive,
-            )?,
+            Some(v) => self.f64_in(&key("frame_interval"), v, "the time between frames in s", Range::Positive)?,
             None => 0.02,
         };
         let cfl_number = match t.get("cfl_number") {
@@ -469,30 +386,16 @@ impl Cx<'_> {
             None => 0.4,
         };
         let min_iterations = match t.get("min_iterations") {
-            Some(v) => self.integer(
-                &key("min_iterations"),
-                v,
-                "the least number of solver iterations",
-                1,
-            )?,
+            Some(v) => self.integer(&key("min_iterations"), v, "the least number of solver iterations", 1)?,
             None => 2,
         };
         let max_iterations = match t.get("max_iterations") {
-            Some(v) => self.integer(
-                &key("max_iterations"),
-                v,
-                "the largest number of solver iterations",
-                1,
-            )?,
+            Some(v) => self.integer(&key("max_iterations"), v, "the largest number of solver iterations", 1)?,
             None => 100,
         };
         if max_iterations < min_iterations {
             return Err(self.err(
-                &key(if t.contains_key("max_iterations") {
-                    "max_iterations"
-                } else {
-                    "min_iterations"
-                }),
+                &key(if t.contains_key("max_iterations") { "max_iterations" } else { "min_iterations" }),
                 format!(
                     "expected max_iterations >= min_iterations, found min_iterations = \
                      {min_iterations} and max_iterations = {max_iterations}"
@@ -500,12 +403,7 @@ impl Cx<'_> {
             ));
         }
         let omega = match t.get("omega") {
-            Some(v) => self.f32_in(
-                &key("omega"),
-                v,
-                "the Jacobi relaxation factor omega",
-                Range::OpenUnit,
-            )?,
+            Some(v) => self.f32_in(&key("omega"), v, "the Jacobi relaxation factor omega", Range::OpenUnit)?,
             None => 0.5,
         };
 
@@ -532,29 +430,16 @@ impl Cx<'_> {
         let name = match self.required(path, t, "name", name_what)? {
             Value::String(s) => s.clone(),
             other => {
-                return Err(self.err(
-                    &key("name"),
-                    format!("expected {name_what} (a string), found {}", describe(other)),
-                ))
+                return Err(
+                    self.err(&key("name"), format!("expected {name_what} (a string), found {}", describe(other)))
+                )
             }
         };
         if name.is_empty() {
-            return Err(self.err(
-                &key("name"),
-                format!("expected {name_what}, found an empty string"),
-            ));
+            return Err(self.err(&key("name"), format!("expected {name_what}, found an empty string")));
         }
-        if let Some(c) = name
-            .chars()
-            .find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '-'))
-        {
-            return Err(self.err(
-                &key("name"),
-                format!(
-                    "expected {name_what}, found {:?}, which contains {c:?}",
-                    name
-                ),
-            ));
+        if let Some(c) = name.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '-')) {
+            return Err(self.err(&key("name"), format!("expected {name_what}, found {:?}, which contains {c:?}", name)));
         }
 
         let density_what = "the rest density in kg/m^3";
@@ -575,22 +460,11 @@ impl Cx<'_> {
             Some(v) => self.vec3(&key("color"), v, "a linear RGB colour", Range::ClosedUnit)?,
             None => PALETTE[index % PALETTE.len()],
         };
-        Ok(Phase {
-            name,
-            density,
-            viscosity,
-            color,
-        })
+        Ok(Phase { name, density, viscosity, color })
     }
 
     /// `[[fluid]]`.
-    fn fluid(
-        &self,
-        path: &str,
-        t: &Table,
-        phases: &[Phase],
-        d: f64,
-    ) -> Result<FluidBlock, SceneError> {
+    fn fluid(&self, path: &str, t: &Table, phases: &[Phase], d: f64) -> Result<FluidBlock, SceneError> {
         self.allow_keys(path, t, FLUID_KEYS)?;
         let shape = self.shape(path, t, d)?;
 
@@ -602,13 +476,7 @@ impl Cx<'_> {
             let k = join(&fractions_key, name);
             let Some(i) = phases.iter().position(|p| &p.name == name) else {
                 let names: Vec<&str> = phases.iter().map(|p| p.name.as_str()).collect();
-                return Err(self.err(
-                    &k,
-                    format!(
-                        "unknown phase `{name}`; the phases are: {}",
-                        names.join(", ")
-                    ),
-                ));
+                return Err(self.err(&k, format!("unknown phase `{name}`; the phases are: {}", names.join(", "))));
             };
             fractions[i] = self.f64_in(&k, v, "a volume fraction", Range::ClosedUnit)?;
         }
@@ -622,19 +490,10 @@ impl Cx<'_> {
         let fractions = fractions.iter().map(|&f| (f / sum) as f32).collect();
 
         let velocity = match t.get("velocity") {
-            Some(v) => self.vec3(
-                &join(path, "velocity"),
-                v,
-                "the initial velocity in m/s",
-                Range::Any,
-            )?,
+            Some(v) => self.vec3(&join(path, "velocity"), v, "the initial velocity in m/s", Range::Any)?,
             None => [0.0; 3],
         };
-        Ok(FluidBlock {
-            shape,
-            fractions,
-            velocity,
-        })
+        Ok(FluidBlock { shape, fractions, velocity })
     }
 
     /// `[[wall]]`.
@@ -652,10 +511,7 @@ impl Cx<'_> {
         if container && !matches!(shape, Shape::Box { .. }) {
             return Err(self.err(
                 &join(path, "container"),
-                format!(
-                    "container = true is only allowed with a box, found a {}",
-                    shape_name(&shape)
-                ),
+                format!("container = true is only allowed with a box, found a {}", shape_name(&shape)),
             ));
         }
         if open_top && !container {
@@ -664,19 +520,12 @@ impl Cx<'_> {
                 "open_top = true is only allowed with container = true, found container = false",
             ));
         }
-        Ok(Wall {
-            shape,
-            container,
-            open_top,
-        })
+        Ok(Wall { shape, container, open_top })
     }
 
     /// Exactly one of `box`, `sphere`, `cylinder` in the table at `path`.
     fn shape(&self, path: &str, t: &Table, d: f64) -> Result<Shape, SceneError> {
-        let present: Vec<(&str, &Value)> = SHAPE_KEYS
-            .iter()
-            .filter_map(|k| t.get(*k).map(|v| (*k, v)))
-            .collect();
+        let present: Vec<(&str, &Value)> = SHAPE_KEYS.iter().filter_map(|k| t.get(*k).map(|v| (*k, v))).collect();
         let (kind, v) = match present.as_slice() {
             [(k, v)] => (*k, *v),
             [] => {
@@ -701,18 +550,8 @@ impl Cx<'_> {
             "box" => {
                 self.allow_keys(&spath, st, BOX_KEYS)?;
                 let corner = "a corner position in m";
-                let min = self.point(
-                    &key("min"),
-                    self.required(&spath, st, "min", corner)?,
-                    corner,
-                    d,
-                )?;
-                let max = self.point(
-                    &key("max"),
-                    self.required(&spath, st, "max", corner)?,
-                    corner,
-                    d,
-                )?;
+                let min = self.point(&key("min"), self.required(&spath, st, "min", corner)?, corner, d)?;
+                let max = self.point(&key("max"), self.required(&spath, st, "max", corner)?, corner, d)?;
                 for axis in 0..3 {
                     let name = ["x", "y", "z"][axis];
                     if min[axis] >= max[axis] {
@@ -741,12 +580,7 @@ impl Cx<'_> {
             "sphere" => {
                 self.allow_keys(&spath, st, SPHERE_KEYS)?;
                 let what = "the centre position in m";
-                let center = self.point(
-                    &key("center"),
-                    self.required(&spath, st, "center", what)?,
-                    what,
-                    d,
-                )?;
+                let center = self.point(&key("center"), self.required(&spath, st, "center", what)?, what, d)?;
                 let radius = self.f32_in(
                     &key("radius"),
                     self.required(&spath, st, "radius", length)?,
@@ -758,28 +592,15 @@ impl Cx<'_> {
             _ => {
                 self.allow_keys(&spath, st, CYLINDER_KEYS)?;
                 let what = "the centre of the base in m";
-                let base = self.point(
-                    &key("base"),
-                    self.required(&spath, st, "base", what)?,
-                    what,
-                    d,
-                )?;
+                let base = self.point(&key("base"), self.required(&spath, st, "base", what)?, what, d)?;
                 let what = "the direction from the base to the top";
-                let a = self.vec3(
-                    &key("axis"),
-                    self.required(&spath, st, "axis", what)?,
-                    what,
-                    Range::Any,
-                )?;
+                let a = self.vec3(&key("axis"), self.required(&spath, st, "axis", what)?, what, Range::Any)?;
                 let a64 = a.map(f64::from);
                 let norm = (a64[0] * a64[0] + a64[1] * a64[1] + a64[2] * a64[2]).sqrt();
                 if !(norm > 0.0 && norm.is_finite()) {
                     return Err(self.err(
                         &key("axis"),
-                        format!(
-                            "expected a non-zero direction vector, found [{}, {}, {}]",
-                            a[0], a[1], a[2]
-                        ),
+                        format!("expected a non-zero direction vector, found [{}, {}, {}]", a[0], a[1], a[2]),
                     ));
                 }
                 let axis = a64.map(|c| (c / norm) as f32);
@@ -795,12 +616,7 @@ impl Cx<'_> {
                     "the height in m",
                     Range::Positive,
                 )?;
-                Shape::Cylinder {
-                    base,
-                    axis,
-                    radius,
-                    height,
-                }
+                Shape::Cylinder { base, axis, radius, height }
             }
         };
         let cells = lattice_cells(&shape, d);
@@ -822,16 +638,9 @@ impl Cx<'_> {
 fn lattice_cells(shape: &Shape, d: f64) -> f64 {
     let extent = |lo: f64, hi: f64| (hi - lo) / d + 1.0;
     match shape {
-        Shape::Box { min, max } => (0..3)
-            .map(|i| extent(f64::from(min[i]), f64::from(max[i])))
-            .product(),
+        Shape::Box { min, max } => (0..3).map(|i| extent(f64::from(min[i]), f64::from(max[i]))).product(),
         Shape::Sphere { radius, .. } => extent(0.0, 2.0 * f64::from(*radius)).powi(3),
-        Shape::Cylinder {
-            axis,
-            radius,
-            height,
-            ..
-        } => (0..3)
+        Shape::Cylinder { axis, radius, height, .. } => (0..3)
             .map(|i| {
                 // Bounding box of a capped cylinder: the axis segment plus the
                 // disc's reach r sqrt(1 - a_i^2) on each side.
@@ -853,15 +662,8 @@ fn shape_name(shape: &Shape) -> &'static str {
 
 /// `path.key`, quoting the key when it is not a bare TOML key.
 fn join(path: &str, key: &str) -> String {
-    let bare = !key.is_empty()
-        && key
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
-    let key = if bare {
-        key.to_string()
-    } else {
-        format!("{key:?}")
-    };
+    let bare = !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    let key = if bare { key.to_string() } else { format!("{key:?}") };
     if path.is_empty() {
         key
     } else {

@@ -27,30 +27,18 @@ impl Scratch {
     pub fn permute(&mut self, c: ColumnMut, perm: &[u32]) {
         match c {
             ColumnMut::F32(v) => {
-                assert_eq!(
-                    v.len(),
-                    perm.len(),
-                    "column length differs from the particle count"
-                );
+                assert_eq!(v.len(), perm.len(), "column length differs from the particle count");
                 gather_into(v, perm, &mut self.f, 0.0);
                 std::mem::swap(v, &mut self.f);
             }
             ColumnMut::U32(v) => {
-                assert_eq!(
-                    v.len(),
-                    perm.len(),
-                    "column length differs from the particle count"
-                );
+                assert_eq!(v.len(), perm.len(), "column length differs from the particle count");
                 gather_into(v, perm, &mut self.u, 0);
                 std::mem::swap(v, &mut self.u);
             }
             ColumnMut::PerPhase(vs) => {
                 for v in vs.iter_mut() {
-                    assert_eq!(
-                        v.len(),
-                        perm.len(),
-                        "column length differs from the particle count"
-                    );
+                    assert_eq!(v.len(), perm.len(), "column length differs from the particle count");
                     gather_into(v, perm, &mut self.f, 0.0);
                     std::mem::swap(v, &mut self.f);
                 }

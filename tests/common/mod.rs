@@ -7,9 +7,7 @@ use std::path::PathBuf;
 
 /// A scene from `scenes/` in the repository.
 pub fn scene_file(name: &str) -> Scene {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
     Scene::from_file(&p).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -20,11 +18,7 @@ pub fn scene_text(text: &str) -> Scene {
 
 /// Runs `f` on a rayon pool of `threads` threads.
 pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool")
-        .install(f)
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool").install(f)
 }
 
 /// Steps until simulated time `t`, panicking with the step error if any.
