@@ -5,12 +5,12 @@
 //! Notation: fluid particle i, wall (boundary) particle b. `FF`, `FB` are the
 //! fluid and wall neighbours of fluid particles; `BF` the fluid neighbours of
 //! the active wall particles (those with at least one fluid neighbour).
-//! After [`scale_by_pair_volume`], the stored pair gradient is
+//! After [`fluid_setup`] and [`wall_setup`], the stored pair gradient is
 //! g_ij = Vbar_ij grad W_ij with Vbar_ij = 2 V_i V_j / (V_i + V_j).
 
 use crate::blocks::BLOCK;
-use crate::lanes::{gather, load, sum, F, LANES};
-use crate::neighbors::PairLists;
+use crate::lanes::{gather, load, store, sum, F, LANES};
+use crate::neighbors::{PairBlock, PairLists};
 use rayon::prelude::*;
 
 /// Harmonic pair volume Vbar_ij = 2 V_i V_j / (V_i + V_j), 0 if either is 0
@@ -79,22 +79,30 @@ fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) ->
     sum(acc)
 }
 
-/// Scales every stored pair gradient by the harmonic pair volume:
-/// g_ij <- Vbar_ij grad W_ij, with V_i from `vol_q` (query side, indexed
-/// like the lists) and V_j from `vol_t` (target side).
-pub fn scale_by_pair_volume(lists: &mut PairLists, vol_q: &[f32], vol_t: &[f32]) {
-    lists.used_mut().par_iter_mut().enumerate().for_each(|(b, blk)| {
-        let nq = blk.start.len().saturating_sub(1);
-        for q in 0..nq {
-            let vi = vol_q[b * BLOCK + q];
-            for p in blk.range(q) {
-                let s = harmonic_volume(vi, vol_t[blk.j[p] as usize]);
-                blk.gx[p] *= s;
-                blk.gy[p] *= s;
-                blk.gz[p] *= s;
-            }
-        }
-    });
+/// Harmonic pair volumes of a vector of pairs, lane-wise (0 where
+/// V_i V_j = 0).
+#[inline(always)]
+fn harmonic_volumes(vi: F, vj: F) -> F {
+    let prod = vi * vj;
+    let hv = F::splat(2.0) * prod / (vi + vj);
+    wide::Select::select(prod.simd_gt(F::ZERO), hv, F::ZERO)
+}
+
+/// Scales the pair gradients of query `q` of `blk` in place by the
+/// harmonic pair volume: g_ij <- Vbar_ij grad W_ij (PHYSICS.md §2.4).
+#[inline(always)]
+fn scale_pairs(blk: &mut PairBlock, q: usize, vi: f32, vol_t: &[f32]) {
+    let r = blk.range(q);
+    let vi = F::splat(vi);
+    let mut k = r.start;
+    while k < r.end {
+        let s = harmonic_volumes(vi, gather(vol_t, &blk.j, k));
+        let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+        store(&mut blk.gx, k, x * s);
+        store(&mut blk.gy, k, y * s);
+        store(&mut blk.gz, k, z * s);
+        k += LANES;
+    }
 }
 
 /// Velocities as three slices.
@@ -105,10 +113,16 @@ pub struct Vel<'a> {
     pub z: &'a [f32],
 }
 
-/// Inputs of the fluid rows of the system.
+/// Three mutable component slices (an output vector field).
+pub struct VelMut<'a> {
+    pub x: &'a mut [f32],
+    pub y: &'a mut [f32],
+    pub z: &'a mut [f32],
+}
+
+/// Per-particle inputs of the fluid rows of the system.
+#[derive(Clone, Copy)]
 pub struct FluidRows<'a> {
-    pub ff: &'a PairLists,
-    pub fb: &'a PairLists,
     /// Predicted velocity u* (after non-pressure forces), m/s.
     pub u_star: Vel<'a>,
     /// Current volume V, m^3.
@@ -119,29 +133,42 @@ pub struct FluidRows<'a> {
     pub alpha_f: &'a [f32],
     /// sigma = V0 / V.
     pub sigma: &'a [f32],
+    /// Current volume of each wall particle (full wall array), m^3.
+    pub vol_wall: &'a [f32],
 }
 
 /// Rows below this outer fraction take no part in the solve (PHYSICS.md §2.4).
 pub const MIN_ALPHA_F: f32 = 0.01;
 
-/// Pass 4c, fluid rows (after [`scale_by_pair_volume`]):
-/// source S_f = alpha_f (1 + dt div*_f) - V0_f/V_f (P-Eq. 29) with
+/// Pass 4c, fluid rows. First scales the fluid and wall pair gradients in
+/// place by the harmonic pair volume (g_ij = Vbar_ij grad W_ij), then forms
+/// the source S_f = alpha_f (1 + dt div*_f) - V0_f/V_f (P-Eq. 29) with
 /// div*_f = -sum_j Vbar (u*_f - u*_j).grad W (P-Eq. 25; walls have u* = 0),
-/// and diagonal a_ff = -dt^2 [ (V_f/m_f) |sum_j Vbar grad W|^2
-/// + sum_{j fluid} (V_j/m_j) Vbar^2 |grad W|^2 ] (PHYSICS.md §2.2).
-pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag: &mut [f32]) {
+/// and the diagonal
+/// a_ff = -dt^2 [ (V_f/m_f) |sum_j g_fj|^2 + sum_{j fluid} (V_j/m_j) |g_fj|^2 ]
+/// (PHYSICS.md §2.2).
+pub fn fluid_setup(
+    ff: &mut PairLists,
+    fb: &mut PairLists,
+    rows: FluidRows,
+    dt: f32,
+    source: &mut [f32],
+    diag: &mut [f32],
+) {
     let dt2 = dt * dt;
     source
         .par_chunks_mut(BLOCK)
         .zip(diag.par_chunks_mut(BLOCK))
-        .zip(rows.ff.used().par_iter().zip(rows.fb.used().par_iter()))
+        .zip(ff.used_mut().par_iter_mut().zip(fb.used_mut().par_iter_mut()))
         .enumerate()
         .for_each(|(b, ((src, dg), (bf, bb)))| {
-            for q in 0..src.len() {
+            for (q, (src, dg)) in src.iter_mut().zip(dg.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
+                scale_pairs(bf, q, rows.vol[i], rows.vol);
+                scale_pairs(bb, q, rows.vol[i], rows.vol_wall);
                 if rows.alpha_f[i] < MIN_ALPHA_F || rows.vol[i] <= 0.0 {
-                    src[q] = 0.0;
-                    dg[q] = 0.0;
+                    *src = 0.0;
+                    *dg = 0.0;
                     continue;
                 }
                 let u = rows.u_star;
@@ -150,25 +177,23 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
                 let mut s2 = F::ZERO;
                 let r = bf.range(q);
-                let (j, gx, gy, gz) = (&bf.j[..r.end], &bf.gx[..r.end], &bf.gy[..r.end], &bf.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
-                    let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
-                    let dux = uxi - gather(u.x, j, k);
-                    let duy = uyi - gather(u.y, j, k);
-                    let duz = uzi - gather(u.z, j, k);
+                    let (x, y, z) = (load(&bf.gx, k), load(&bf.gy, k), load(&bf.gz, k));
+                    let dux = uxi - gather(u.x, &bf.j, k);
+                    let duy = uyi - gather(u.y, &bf.j, k);
+                    let duz = uzi - gather(u.z, &bf.j, k);
                     div -= dux * x + duy * y + duz * z;
                     sx += x;
                     sy += y;
                     sz += z;
-                    s2 += gather(rows.vm, j, k) * (x * x + y * y + z * z);
+                    s2 += gather(rows.vm, &bf.j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
                 let r = bb.range(q);
-                let (gx, gy, gz) = (&bb.gx[..r.end], &bb.gy[..r.end], &bb.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
-                    let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
+                    let (x, y, z) = (load(&bb.gx, k), load(&bb.gy, k), load(&bb.gz, k));
                     div -= uxi * x + uyi * y + uzi * z;
                     sx += x;
                     sy += y;
@@ -176,63 +201,67 @@ pub fn fluid_source_diagonal(rows: &FluidRows, dt: f32, source: &mut [f32], diag
                     k += LANES;
                 }
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
-                let vm_i = rows.vm[i];
-                src[q] = rows.alpha_f[i] * (1.0 + dt * sum(div)) - rows.sigma[i];
-                dg[q] = -dt2 * (vm_i * (sx * sx + sy * sy + sz * sz) + sum(s2));
+                *src = rows.alpha_f[i] * (1.0 + dt * sum(div)) - rows.sigma[i];
+                *dg = -dt2 * (rows.vm[i] * (sx * sx + sy * sy + sz * sz) + sum(s2));
             }
         });
 }
 
-/// Pass 4c, wall rows (after [`scale_by_pair_volume`]): S_b = 1 + dt div*_b
-/// - V0_b/V_b (P-Eq. 26) with div*_b = -sum_f Vbar (0 - u*_f).grad W_bf, and
-/// a_bb = -dt^2 sum_f (V_f/m_f) Vbar^2 |grad W_bf|^2 (static: no own term).
-pub fn wall_source_diagonal(
-    bf: &PairLists,
-    u_star: Vel,
-    vm_f: &[f32],
-    sigma_b: &[f32],
-    dt: f32,
-    source: &mut [f32],
-    diag: &mut [f32],
-) {
+/// Per-particle inputs of the wall rows (compact arrays over the active
+/// walls, except where noted).
+#[derive(Clone, Copy)]
+pub struct WallRows<'a> {
+    /// Current volume V_b of each active wall, m^3.
+    pub vol: &'a [f32],
+    /// sigma_b = V0_b / V_b of each active wall.
+    pub sigma: &'a [f32],
+    /// Fluid u*, m/s (full fluid arrays).
+    pub u_star: Vel<'a>,
+    /// Fluid V/m, m^3/kg.
+    pub vm_fluid: &'a [f32],
+    /// Fluid V, m^3.
+    pub vol_fluid: &'a [f32],
+}
+
+/// Pass 4c, wall rows: scales the wall-fluid pair gradients in place by the
+/// harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
+/// (P-Eq. 26) with div*_b = -sum_f Vbar (0 - u*_f).grad W_bf, and
+/// a_bb = -dt^2 sum_f (V_f/m_f) |g_bf|^2 (a static wall has no own term).
+pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32], diag: &mut [f32]) {
     let dt2 = dt * dt;
-    source.par_chunks_mut(BLOCK).zip(diag.par_chunks_mut(BLOCK)).zip(bf.used().par_iter()).enumerate().for_each(
-        |(b, ((src, dg), blk))| {
-            for q in 0..src.len() {
+    source
+        .par_chunks_mut(BLOCK)
+        .zip(diag.par_chunks_mut(BLOCK))
+        .zip(bf.used_mut().par_iter_mut())
+        .enumerate()
+        .for_each(|(b, ((src, dg), blk))| {
+            for (q, (src, dg)) in src.iter_mut().zip(dg.iter_mut()).enumerate() {
+                let i = b * BLOCK + q;
+                scale_pairs(blk, q, rows.vol[i], rows.vol_fluid);
                 let r = blk.range(q);
-                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-                let mut div = F::ZERO;
-                let mut s2 = F::ZERO;
+                let (mut div, mut s2) = (F::ZERO, F::ZERO);
+                let u = rows.u_star;
                 let mut k = r.start;
                 while k < r.end {
-                    let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
-                    div += gather(u_star.x, j, k) * x + gather(u_star.y, j, k) * y + gather(u_star.z, j, k) * z;
-                    s2 += gather(vm_f, j, k) * (x * x + y * y + z * z);
+                    let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+                    div += gather(u.x, &blk.j, k) * x + gather(u.y, &blk.j, k) * y + gather(u.z, &blk.j, k) * z;
+                    s2 += gather(rows.vm_fluid, &blk.j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
-                src[q] = 1.0 + dt * sum(div) - sigma_b[b * BLOCK + q];
-                dg[q] = -dt2 * sum(s2);
+                *src = 1.0 + dt * sum(div) - rows.sigma[i];
+                *dg = -dt2 * sum(s2);
             }
-        },
-    );
+        });
 }
 
 /// Pressure acceleration, P-Eq. 27 with the factor 2 restored:
 /// a^p_f = -(V_f/m_f) sum_j Vbar_fj (p_f + p_j) grad W_fj over fluid and wall
 /// neighbours (`p_b` is the full wall pressure array).
-pub fn pressure_acceleration(
-    ff: &PairLists,
-    fb: &PairLists,
-    vm: &[f32],
-    p_f: &[f32],
-    p_b: &[f32],
-    ax: &mut [f32],
-    ay: &mut [f32],
-    az: &mut [f32],
-) {
-    ax.par_chunks_mut(BLOCK)
-        .zip(ay.par_chunks_mut(BLOCK))
-        .zip(az.par_chunks_mut(BLOCK))
+pub fn pressure_acceleration(ff: &PairLists, fb: &PairLists, vm: &[f32], p_f: &[f32], p_b: &[f32], out: VelMut) {
+    out.x
+        .par_chunks_mut(BLOCK)
+        .zip(out.y.par_chunks_mut(BLOCK))
+        .zip(out.z.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, (((ox, oy), oz), (bf, bb)))| {
@@ -260,83 +289,85 @@ pub fn pressure_acceleration(
         });
 }
 
+/// The rows of the pressure system: source S and diagonal a_ii.
+#[derive(Clone, Copy)]
+pub struct Rows<'a> {
+    pub source: &'a [f32],
+    pub diag: &'a [f32],
+}
+
+/// Settings of a relaxed Jacobi sweep.
+#[derive(Clone, Copy)]
+pub struct Jacobi {
+    /// Time step, s.
+    pub dt: f32,
+    /// Relaxation factor omega.
+    pub omega: f32,
+}
+
 /// Relaxed Jacobi update of the fluid rows, P-Eq. 28:
 /// (Ap)_f = dt^2 sum_j Vbar (a^p_f - a^p_j).grad W (walls: a^p = 0),
 /// r_f = S_f - (Ap)_f, p_f <- max(0, p_f + omega r_f / a_ff).
 /// Writes max(-r_f, 0) (the predicted compression) to `err`.
-#[allow(clippy::too_many_arguments)]
-pub fn fluid_jacobi(
-    ff: &PairLists,
-    fb: &PairLists,
-    ap: Vel,
-    source: &[f32],
-    diag: &[f32],
-    dt: f32,
-    omega: f32,
-    p: &mut [f32],
-    err: &mut [f32],
-) {
-    let dt2 = dt * dt;
+pub fn fluid_jacobi(ff: &PairLists, fb: &PairLists, ap: Vel, rows: Rows, jac: Jacobi, p: &mut [f32], err: &mut [f32]) {
+    let dt2 = jac.dt * jac.dt;
     p.par_chunks_mut(BLOCK)
         .zip(err.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
         .enumerate()
         .for_each(|(b, ((pp, ee), (bf, bb)))| {
-            for q in 0..pp.len() {
+            for (q, (p, e)) in pp.iter_mut().zip(ee.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
-                if diag[i].abs() < f32::MIN_POSITIVE {
-                    pp[q] = 0.0;
-                    ee[q] = 0.0;
+                if rows.diag[i].abs() < f32::MIN_POSITIVE {
+                    *p = 0.0;
+                    *e = 0.0;
                     continue;
                 }
                 let (axi, ayi, azi) = (F::splat(ap.x[i]), F::splat(ap.y[i]), F::splat(ap.z[i]));
                 let mut acc = F::ZERO;
                 let r = bf.range(q);
-                let (j, gx, gy, gz) = (&bf.j[..r.end], &bf.gx[..r.end], &bf.gy[..r.end], &bf.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
-                    acc += (axi - gather(ap.x, j, k)) * load(gx, k)
-                        + (ayi - gather(ap.y, j, k)) * load(gy, k)
-                        + (azi - gather(ap.z, j, k)) * load(gz, k);
+                    acc += (axi - gather(ap.x, &bf.j, k)) * load(&bf.gx, k)
+                        + (ayi - gather(ap.y, &bf.j, k)) * load(&bf.gy, k)
+                        + (azi - gather(ap.z, &bf.j, k)) * load(&bf.gz, k);
                     k += LANES;
                 }
                 let r = bb.range(q);
-                let (gx, gy, gz) = (&bb.gx[..r.end], &bb.gy[..r.end], &bb.gz[..r.end]);
                 let mut k = r.start;
                 while k < r.end {
-                    acc += axi * load(gx, k) + ayi * load(gy, k) + azi * load(gz, k);
+                    acc += axi * load(&bb.gx, k) + ayi * load(&bb.gy, k) + azi * load(&bb.gz, k);
                     k += LANES;
                 }
-                let res = source[i] - dt2 * sum(acc);
-                pp[q] = (pp[q] + omega * res / diag[i]).max(0.0);
-                ee[q] = (-res).max(0.0);
+                let res = rows.source[i] - dt2 * sum(acc);
+                *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
+                *e = (-res).max(0.0);
             }
         });
 }
 
 /// Relaxed Jacobi update of the active wall rows (compact arrays):
 /// (Ap)_b = -dt^2 sum_f Vbar a^p_f.grad W_bf, then as [`fluid_jacobi`].
-pub fn wall_jacobi(bf: &PairLists, ap: Vel, source: &[f32], diag: &[f32], dt: f32, omega: f32, p: &mut [f32]) {
-    let dt2 = dt * dt;
+pub fn wall_jacobi(bf: &PairLists, ap: Vel, rows: Rows, jac: Jacobi, p: &mut [f32]) {
+    let dt2 = jac.dt * jac.dt;
     p.par_chunks_mut(BLOCK).zip(bf.used().par_iter()).enumerate().for_each(|(b, (pp, blk))| {
-        for q in 0..pp.len() {
+        for (q, p) in pp.iter_mut().enumerate() {
             let i = b * BLOCK + q;
-            if diag[i].abs() < f32::MIN_POSITIVE {
-                pp[q] = 0.0;
+            if rows.diag[i].abs() < f32::MIN_POSITIVE {
+                *p = 0.0;
                 continue;
             }
             let r = blk.range(q);
-            let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
             let mut acc = F::ZERO;
             let mut k = r.start;
             while k < r.end {
-                acc += gather(ap.x, j, k) * load(gx, k)
-                    + gather(ap.y, j, k) * load(gy, k)
-                    + gather(ap.z, j, k) * load(gz, k);
+                acc += gather(ap.x, &blk.j, k) * load(&blk.gx, k)
+                    + gather(ap.y, &blk.j, k) * load(&blk.gy, k)
+                    + gather(ap.z, &blk.j, k) * load(&blk.gz, k);
                 k += LANES;
             }
-            let res = source[i] + dt2 * sum(acc);
-            pp[q] = (pp[q] + omega * res / diag[i]).max(0.0);
+            let res = rows.source[i] + dt2 * sum(acc);
+            *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
         }
     });
 }

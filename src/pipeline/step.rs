@@ -7,7 +7,7 @@ use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
 use porosph_kernels::grid::{cell_of, morton};
-use porosph_kernels::iisph::{self, FluidRows, Vel, MIN_ALPHA_F};
+use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
 use porosph_kernels::viscosity::{predict_velocity, ViscosityInput};
@@ -112,7 +112,7 @@ impl Simulation {
     }
 }
 
-fn zeros<'a>(arena: &'a Bump, n: usize) -> &'a mut [f32] {
+fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
     arena.alloc_slice_fill_copy(n, 0.0f32)
 }
 
@@ -250,12 +250,10 @@ fn step_passes(
     let diag_b = zeros(arena, na);
     let p_b = zeros(arena, na);
     tm.time(pass::PPE_SETUP, || {
-        iisph::scale_by_pair_volume(&mut w.ff, vol, vol);
-        iisph::scale_by_pair_volume(&mut w.fb, vol, vol_b_full);
-        iisph::scale_by_pair_volume(&mut w.bf, vol_b, vol);
-        let rows = FluidRows { ff: &w.ff, fb: &w.fb, u_star, vol, vm, alpha_f, sigma };
-        iisph::fluid_source_diagonal(&rows, dt, src, diag);
-        iisph::wall_source_diagonal(&w.bf, u_star, vm, sigma_b, dt, src_b, diag_b);
+        let rows = FluidRows { u_star, vol, vm, alpha_f, sigma, vol_wall: vol_b_full };
+        iisph::fluid_setup(&mut w.ff, &mut w.fb, rows, dt, src, diag);
+        let rows = WallRows { vol: vol_b, sigma: sigma_b, u_star, vm_fluid: vm, vol_fluid: vol };
+        iisph::wall_setup(&mut w.bf, rows, dt, src_b, diag_b);
         // Warm start from half the last pressure (PHYSICS.md §2.2).
         fluid.pressure.par_iter_mut().for_each(|x| *x *= 0.5);
         for (k, &b) in w.active.iter().enumerate() {
@@ -278,10 +276,12 @@ fn step_passes(
     tm.time(pass::PRESSURE_SOLVE, || {
         let mut it = 0;
         loop {
-            iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, apx, apy, apz);
+            let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+            iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
             let ap = Vel { x: apx, y: apy, z: apz };
-            iisph::fluid_jacobi(&w.ff, &w.fb, ap, src, diag, dt, p.omega, &mut fluid.pressure, err);
-            iisph::wall_jacobi(&w.bf, ap, src_b, diag_b, dt, p.omega, p_b);
+            let jac = Jacobi { dt, omega: p.omega };
+            iisph::fluid_jacobi(&w.ff, &w.fb, ap, Rows { source: src, diag }, jac, &mut fluid.pressure, err);
+            iisph::wall_jacobi(&w.bf, ap, Rows { source: src_b, diag: diag_b }, jac, p_b);
             for (k, &b) in w.active.iter().enumerate() {
                 walls.pressure[b as usize] = p_b[k];
             }
@@ -293,7 +293,8 @@ fn step_passes(
             }
         }
         st.iterations = it;
-        iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, apx, apy, apz);
+        let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+        iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
     });
 
     // Pass 13: symplectic Euler.

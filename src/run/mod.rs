@@ -123,7 +123,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     };
     while !done(sim) {
         let t = Instant::now();
-        let result = sim.step().map(|s| *s);
+        let result = sim.step().copied();
         let st = match result {
             Ok(st) => st,
             Err(e) => {
