@@ -19,6 +19,24 @@ fn part1by2(v: u64) -> u64 {
     x
 }
 
+/// Gathers every third bit of `v` into the low 21 bits (inverse of part1by2).
+#[inline(always)]
+fn compact1by2(v: u64) -> u64 {
+    let mut x = v & 0x1249_2492_4924_9249;
+    x = (x | (x >> 2)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x >> 4)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x >> 8)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x >> 16)) & 0x001f_0000_0000_ffff;
+    x = (x | (x >> 32)) & 0x1f_ffff;
+    x
+}
+
+/// Cell coordinates of a Morton key.
+#[inline(always)]
+pub fn unmorton(k: u64) -> [u32; 3] {
+    [compact1by2(k) as u32, compact1by2(k >> 1) as u32, compact1by2(k >> 2) as u32]
+}
+
 /// Morton key of integer cell coordinates (each < 2^21).
 #[inline(always)]
 pub fn morton(c: [u32; 3]) -> u64 {
@@ -142,6 +160,30 @@ impl CellGrid {
         n
     }
 
+    /// The keys of every cell within one cell of an occupied cell
+    /// (occupied cells included), ascending, without duplicates: build a
+    /// [`CellGrid`] from them to test "is anything of this grid within
+    /// reach of that cell" with one lookup.
+    pub fn dilated_keys(&self) -> Vec<u64> {
+        let mut keys = Vec::with_capacity(self.cells.len() * 8);
+        for &k in &self.cells {
+            let c = unmorton(k);
+            for dz in -1i64..=1 {
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let q = [c[0] as i64 + dx, c[1] as i64 + dy, c[2] as i64 + dz];
+                        if q.iter().all(|v| (0..=MAX_COORD).contains(v)) {
+                            keys.push(morton([q[0] as u32, q[1] as u32, q[2] as u32]));
+                        }
+                    }
+                }
+            }
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        keys
+    }
+
     /// Number of occupied cells.
     pub fn len(&self) -> usize {
         self.cells.len()
@@ -165,6 +207,9 @@ mod tests {
         assert_eq!(morton([3, 3, 3]), 63);
         let m = (1u32 << 21) - 1;
         assert_eq!(morton([m, m, m]), (1u64 << 63) - 1);
+        for c in [[0, 0, 0], [5, 77, 1234], [m, 0, m - 3], [1 << 20, 3, 99]] {
+            assert_eq!(unmorton(morton(c)), c);
+        }
     }
 
     #[test]

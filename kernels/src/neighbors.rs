@@ -147,7 +147,18 @@ impl Points<'_> {
 /// Each query's pairs are padded to a whole number of SIMD vectors with
 /// pairs of weight and gradient 0 (target index: the query's first real
 /// neighbour, or 0), so that every pass loads whole vectors.
-pub fn build_pairs(lists: &mut PairLists, query: Points, target: Points, grid: &CellGrid, kernel: &CubicSpline) {
+///
+/// `near`, if given, is a set of cells outside which no query has a target
+/// within reach (see [`CellGrid::dilated_keys`]); queries there are skipped
+/// with one lookup instead of 27.
+pub fn build_pairs(
+    lists: &mut PairLists,
+    query: Points,
+    target: Points,
+    grid: &CellGrid,
+    near: Option<&CellGrid>,
+    kernel: &CubicSpline,
+) {
     let n = query.len();
     let nblocks = n.div_ceil(BLOCK);
     if lists.blocks.len() < nblocks {
@@ -167,8 +178,12 @@ pub fn build_pairs(lists: &mut PairLists, query: Points, target: Points, grid: &
             let (xi, yi, zi) = (query.x[i], query.y[i], query.z[i]);
             let c = cell_of(xi, yi, zi, grid.inv_cell);
             if c != last_cell {
-                let found = grid.neighbor_ranges(c, &mut ranges);
-                nr = merge_ranges(&mut ranges, found);
+                nr = if near.is_some_and(|set| set.find(morton(c)).is_none()) {
+                    0
+                } else {
+                    let found = grid.neighbor_ranges(c, &mut ranges);
+                    merge_ranges(&mut ranges, found)
+                };
                 last_cell = c;
             }
             let first = blk.j.len();

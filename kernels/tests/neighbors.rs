@@ -54,8 +54,14 @@ fn random_sets_match_brute_force() {
         let (x, y, z, g) = sorted(&pts, h);
         let p = Points { x: &x, y: &y, z: &z };
         let mut l = PairLists::default();
-        build_pairs(&mut l, p, p, &g, &kernel);
+        build_pairs(&mut l, p, p, &g, None, &kernel);
         let got = pairs_of(&l);
+        // Skipping far cells with the dilated set changes nothing.
+        let mut near = CellGrid::default();
+        near.build(&g.dilated_keys(), h);
+        let mut l2 = PairLists::default();
+        build_pairs(&mut l2, p, p, &g, Some(&near), &kernel);
+        assert_eq!(pairs_of(&l2), got);
         for i in 0..n {
             let want: Vec<u32> = (0..n as u32)
                 .filter(|&j| {
@@ -94,7 +100,7 @@ fn pairs_at_the_support_radius() {
                 let (x, y, z, g) = sorted(&[a, b], h);
                 let p = Points { x: &x, y: &y, z: &z };
                 let mut l = PairLists::default();
-                build_pairs(&mut l, p, p, &g, &kernel);
+                build_pairs(&mut l, p, p, &g, None, &kernel);
                 let found = pairs_of(&l)[0].len() == 2;
                 assert_eq!(found, expect, "axis {axis}, distance {dist}/H = {}, base {base}", dist / h);
             }

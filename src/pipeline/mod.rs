@@ -71,9 +71,12 @@ struct Workspace {
     fb: PairLists,
     /// Active-wall-fluid pairs.
     bf: PairLists,
-    /// Wall particles with at least one fluid particle in a neighbouring cell.
+    /// Cells within one cell of a wall cell (static).
+    wall_near: CellGrid,
+    /// Wall particles with at least one fluid neighbour, ascending.
     active: Vec<u32>,
-    active_cell: Vec<u8>,
+    /// 1 for the active walls (reset each step through `active`).
+    wall_flag: Vec<u8>,
 }
 
 /// A running simulation: state, time, and what it needs to step.

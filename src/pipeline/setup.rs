@@ -84,7 +84,9 @@ impl Simulation {
         work.wall_grid.build(&sorted, params.kernel.support);
         let mut bb = PairLists::default();
         let pts = Points { x: &walls.x, y: &walls.y, z: &walls.z };
-        build_pairs(&mut bb, pts, pts, &work.wall_grid, &params.kernel);
+        build_pairs(&mut bb, pts, pts, &work.wall_grid, None, &params.kernel);
+        let near = work.wall_grid.dilated_keys();
+        work.wall_near.build(&near, params.kernel.support);
         // Rest volume of a wall particle (PHYSICS.md §2.3, Akinci-style):
         // V0_b = gamma / sum_{b'} W_bb' over the wall (incl. self), with gamma
         // the value of d^3 sum W over a flat wall of two lattice layers. So

@@ -6,7 +6,6 @@ use super::{Params, Simulation, StepStats, Workspace};
 use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
-use porosph_kernels::grid::{cell_of, morton};
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
@@ -143,22 +142,23 @@ fn step_passes(
         w.fluid_grid.build(&w.keys, support);
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
-        build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, &p.kernel);
-        build_pairs(&mut w.fb, fp, wp, &w.wall_grid, &p.kernel);
-        // Active walls: those in a cell next to a fluid cell.
-        let (wg, fg) = (&w.wall_grid, &w.fluid_grid);
-        w.active_cell.resize(wg.len(), 0);
-        w.active_cell.par_iter_mut().enumerate().for_each(|(c, a)| {
-            let i = wg.starts[c] as usize;
-            let cc = cell_of(walls.x[i], walls.y[i], walls.z[i], wg.inv_cell);
-            *a = near_occupied(fg, cc) as u8;
-        });
-        w.active.clear();
-        for (c, &a) in w.active_cell.iter().enumerate() {
-            if a != 0 {
-                w.active.extend(wg.starts[c]..wg.starts[c + 1]);
+        build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+        // Active walls: those with at least one fluid neighbour (PHYSICS.md
+        // §2.4), in wall order: the targets of the fluid-wall pairs.
+        w.wall_flag.resize(walls.len(), 0);
+        for &b in &w.active {
+            w.wall_flag[b as usize] = 0;
+        }
+        for blk in w.fb.used() {
+            for (&b, &wt) in blk.j.iter().zip(&blk.w) {
+                if wt > 0.0 {
+                    w.wall_flag[b as usize] = 1;
+                }
             }
         }
+        w.active.clear();
+        w.active.extend((0..walls.len() as u32).filter(|&b| w.wall_flag[b as usize] != 0));
     });
     let na = w.active.len();
     let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
@@ -166,7 +166,7 @@ fn step_passes(
     let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
     tm.time(pass::NEIGHBORS, || {
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, &p.kernel);
+        build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
     });
 
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
@@ -310,22 +310,4 @@ fn step_passes(
         integrate(s, u_star, Vel { x: apx, y: apy, z: apz }, dt);
     });
     st
-}
-
-/// Whether any of the 27 cells around `c` holds a particle of `grid`.
-fn near_occupied(grid: &porosph_kernels::grid::CellGrid, c: [u32; 3]) -> bool {
-    for dz in -1i64..=1 {
-        for dy in -1i64..=1 {
-            for dx in -1i64..=1 {
-                let q = [c[0] as i64 + dx, c[1] as i64 + dy, c[2] as i64 + dz];
-                if q.iter().any(|&v| !(0..(1 << 21)).contains(&v)) {
-                    continue;
-                }
-                if grid.find(morton([q[0] as u32, q[1] as u32, q[2] as u32])).is_some() {
-                    return true;
-                }
-            }
-        }
-    }
-    false
 }
