@@ -86,6 +86,18 @@ container = true
     Scene::from_toml_str(&text, "<bench dam break>").map_err(|e| e.to_string())
 }
 
+/// CPU time of the whole machine that is not idle, and of this process, in
+/// clock ticks (from /proc): to tell steps disturbed by other processes.
+fn cpu_snapshot() -> Option<(u64, u64)> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    let v: Vec<u64> = stat.lines().next()?.split_whitespace().skip(1).filter_map(|x| x.parse().ok()).collect();
+    // busy = all - nice - idle - iowait (niced background jobs do not count)
+    let busy = v.iter().sum::<u64>() - v.get(1)? - v.get(3)? - v.get(4)?;
+    let own = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let w: Vec<&str> = own.rsplit_once(')')?.1.split_whitespace().collect();
+    Some((busy, w.get(11)?.parse::<u64>().ok()? + w.get(12)?.parse::<u64>().ok()?))
+}
+
 fn main() {
     let a = match parse() {
         Ok(a) => a,
@@ -114,10 +126,21 @@ fn bench(a: &Args) {
     let mut pass_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut step_s = Vec::new();
+    let mut clean_s = Vec::new();
+    let tick = 100.0; // USER_HZ on Linux
+    let cpus = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) as f64;
     for s in 0..a.steps {
+        let c0 = cpu_snapshot();
         let t = Instant::now();
         let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
         let el = t.elapsed().as_secs_f64();
+        if let (Some((b0, o0)), Some((b1, o1))) = (c0, cpu_snapshot()) {
+            // Share of the machine used by other processes during this step.
+            let foreign = ((b1 - b0) as f64 - (o1 - o0) as f64) / tick / (el * cpus);
+            if s >= a.warmup && foreign < 0.05 {
+                clean_s.push(el);
+            }
+        }
         if s >= a.warmup {
             measured += 1;
             wall_s += el;
@@ -131,6 +154,8 @@ fn bench(a: &Args) {
     }
     step_s.sort_by(f64::total_cmp);
     let median = step_s[step_s.len() / 2];
+    clean_s.sort_by(f64::total_cmp);
+    let median_clean = clean_s.get(clean_s.len() / 2).copied();
     let m = measured as f64;
     let pps = n as f64 * m / wall_s;
     let (ff, fb) = sim.pair_counts();
@@ -140,6 +165,10 @@ fn bench(a: &Args) {
         a.warmup, sim.time, min_dt
     );
     println!("mean s/step          {:.4}  (median {:.4})", wall_s / m, median);
+    match median_clean {
+        Some(mc) => println!("median of clean steps {:.4}  ({} steps with < 5 % foreign CPU load)", mc, clean_s.len()),
+        None => println!("median of clean steps: none (other processes loaded the machine in every step)"),
+    }
     println!("particle-steps/s     {:.3} M  (median step: {:.3} M)", pps / 1e6, n as f64 / median / 1e6);
     println!("mean iterations      {:.2}", iters as f64 / m);
     println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
@@ -154,7 +183,7 @@ fn bench(a: &Args) {
             "{{\"fluid_particles\": {n}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \
              \"particle_steps_per_s\": {:.0}, \"mean_iterations\": {:.2}, \"bytes_per_particle\": {:.0}, \
-             \"ms_per_pass\": {{{}}}}}",
+             \"median_s_clean\": {}, \"clean_steps\": {}, \"ms_per_pass\": {{{}}}}}",
             a.spacing,
             a.threads,
             a.dt,
@@ -165,6 +194,8 @@ fn bench(a: &Args) {
             pps,
             iters as f64 / m,
             sim.bytes_per_particle(),
+            median_clean.map_or("null".to_string(), |v| format!("{v:.5}")),
+            clean_s.len(),
             passes.join(", ")
         );
         match std::fs::OpenOptions::new().create(true).append(true).open(path) {
