@@ -8,7 +8,7 @@
 //!                            time (f64, s), step (u64), dt (f32, s),
 //!                            fluid_particles (u64), wall_particles (u64),
 //!                            failure (string; "" unless written when a step failed)
-//! /scene              string: the scene text exactly as read; attrs origin, xxh64
+//! /scene              u8 [n]: the scene text (UTF-8) exactly as read; attrs origin, xxh64
 //! /params             attrs: the parameters porosph derived from the scene
 //!                     (h, kernel_support, gravity, max_dt, cfl, ...), units
 //! /run                attrs: where the run stands (frames written, next frame
@@ -36,7 +36,7 @@ use crate::pipeline::{Params, SavedState, Simulation};
 use crate::scene::Scene;
 use crate::store::{Column, ColumnMut, FluidStore, WallStore};
 use hdf5::dataset::Layout;
-use hdf5::types::{TypeDescriptor, VarLenUnicode};
+use hdf5::types::{FixedUnicode, TypeDescriptor};
 use hdf5::{Dataset, File, Group, H5Type, Location};
 use std::ffi::OsString;
 use std::fmt::{self, Display, Write as _};
@@ -225,20 +225,8 @@ fn write_contents(
     write_attr(file, "wall_particles", &(sim.walls.len() as u64))?;
     write_str_attr(file, "failure", failure.unwrap_or(""))?;
 
-    let text: VarLenUnicode = sim
-        .scene
-        .text
-        .parse()
-        .map_err(|e| format!("the scene text cannot be stored: {e}"))?;
-    let scene = file
-        .new_dataset::<VarLenUnicode>()
-        .shape(())
-        .create("scene")
-        .ctx("cannot create /scene")?;
-    scene
-        .as_writer()
-        .write_scalar(&text)
-        .ctx("cannot write /scene")?;
+    let text = sim.scene.text.as_bytes();
+    let scene = dataset(file, "scene", text, &[text.len()]).ctx("cannot write /scene")?;
     write_str_attr(&scene, "origin", &sim.scene.origin)?;
     write_attr(&scene, "xxh64", &scene_hash(&sim.scene.text))?;
 
@@ -255,16 +243,16 @@ fn write_contents(
                 .ctx(format_args!("cannot write /params@{name}"))?,
         }
     }
-    let names = sim
+    let names: Vec<FixedUnicode<NAME_CAP>> = sim
         .scene
         .phases
         .iter()
-        .map(|p| p.name.parse::<VarLenUnicode>())
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| format!("a phase name cannot be stored: {e}"))?;
+        .map(|p| fixed::<NAME_CAP>(&p.name))
+        .collect::<Result<_, _>>()?;
+    let longest = names.iter().map(|n| n.len()).max().unwrap_or(0).max(1);
     params
         .new_attr_builder()
-        .with_data(&names[..])
+        .with_data_as(&names[..], &TypeDescriptor::FixedUnicode(longest))
         .create("phase_names")
         .ctx("cannot write /params@phase_names")?;
     write_str_attr(&params, "units", PARAM_UNITS)?;
@@ -366,11 +354,39 @@ fn write_attr<T: H5Type>(loc: &Location, name: &str, value: &T) -> Result<(), St
         ))
 }
 
+/// Longest string attribute, bytes (longer ones, such as a very long scene
+/// origin, are cut at a character boundary).
+const STR_CAP: usize = 4096;
+
+/// Longest phase name stored in `/params@phase_names`, bytes.
+const NAME_CAP: usize = 256;
+
+/// `value` as a fixed-length string of capacity `N`, cut to fit.
+fn fixed<const N: usize>(value: &str) -> Result<FixedUnicode<N>, String> {
+    let mut end = value.len().min(N);
+    while !value.is_char_boundary(end) {
+        end -= 1;
+    }
+    value[..end]
+        .parse::<FixedUnicode<N>>()
+        .map_err(|e| format!("string {value:?}: {e}"))
+}
+
+/// A string attribute, stored as a fixed-length UTF-8 string of its own
+/// length: fixed-length strings live in the object header, which HDF5
+/// checksums (variable-length ones would live in the global heap, which has
+/// no checksum, and a damaged heap can crash the HDF5 library).
 fn write_str_attr(loc: &Location, name: &str, value: &str) -> Result<(), String> {
-    let v: VarLenUnicode = value
-        .parse()
-        .map_err(|e| format!("attribute {}: {e}", attr_name(loc, name)))?;
-    write_attr(loc, name, &v)
+    let v = fixed::<STR_CAP>(value)?;
+    loc.new_attr_builder()
+        .empty_as(&TypeDescriptor::FixedUnicode(v.len().max(1)))
+        .shape(())
+        .create(name)
+        .and_then(|a| a.as_writer().write_scalar(&v))
+        .ctx(format_args!(
+            "cannot write attribute {}",
+            attr_name(loc, name)
+        ))
 }
 
 /// `/group@name`, or `/@name` at the root.
@@ -638,8 +654,13 @@ impl<'a> Reader<'a> {
 
     fn read(&mut self) -> Result<Checkpoint, String> {
         let file = self.file;
-        let format = attr_string(file, "format")
-            .map_err(|_| "not a porosph checkpoint (no format attribute)".to_string())?;
+        let root = file
+            .attr_names()
+            .ctx("cannot read the root attributes (damaged file?)")?;
+        if !root.iter().any(|n| n == "format") {
+            return Err("not a porosph checkpoint (no format attribute)".to_string());
+        }
+        let format = attr_string(file, "format")?;
         if format != FORMAT {
             return Err(format!(
                 "not a porosph checkpoint (format attribute is {format:?})"
@@ -660,10 +681,27 @@ impl<'a> Reader<'a> {
         let failure = attr_string(file, "failure")?;
 
         let scene_ds = open_dataset(file, "scene")?;
-        let text = read_scalar_string(&scene_ds, "/scene")?;
         let origin = attr_string(&scene_ds, "origin")?;
         let stored: u64 = attr(&scene_ds, "xxh64")?;
-        self.check("/scene".to_string(), stored, scene_hash(&text))?;
+        let got = scene_ds
+            .dtype()
+            .and_then(|t| t.to_descriptor())
+            .ctx("/scene: element type")?;
+        if got != u8::type_descriptor() || scene_ds.ndim() != 1 {
+            return Err(format!(
+                "/scene has type {got} and shape {:?}, expected the scene text as bytes [n]",
+                scene_ds.shape()
+            ));
+        }
+        let bytes: Vec<u8> = if scene_ds.size() == 0 {
+            Vec::new()
+        } else {
+            scene_ds.read_raw().ctx("cannot read /scene")?
+        };
+        let mut h = Xxh64::new(0);
+        h.update(&bytes);
+        self.check("/scene".to_string(), stored, h.finish())?;
+        let text = String::from_utf8(bytes).map_err(|_| "/scene is not UTF-8 text".to_string())?;
         let scene = Scene::from_toml_str(&text, &origin)
             .map_err(|e| format!("the stored scene text is not a valid scene: {e}"))?;
 
@@ -972,19 +1010,23 @@ fn attr_vec(loc: &Location, name: &str) -> Result<Vec<f32>, String> {
     a.read_raw::<f32>().ctx(&what)
 }
 
+/// A fixed-length string attribute.
 fn attr_string(loc: &Location, name: &str) -> Result<String, String> {
-    let v: VarLenUnicode = attr(loc, name)?;
-    Ok(v.as_str().to_string())
-}
-
-fn read_scalar_string(ds: &Dataset, what: &str) -> Result<String, String> {
-    let got = ds.dtype().and_then(|t| t.to_descriptor()).ctx(what)?;
-    if got != TypeDescriptor::VarLenUnicode || ds.size() != 1 {
-        return Err(format!(
-            "{what} has type {got} and shape {:?}, expected one UTF-8 string",
-            ds.shape()
-        ));
+    let what = attr_name(loc, name);
+    let a = loc
+        .attr(name)
+        .map_err(|_| format!("missing attribute {what}"))?;
+    let got = a.dtype().and_then(|t| t.to_descriptor()).ctx(&what)?;
+    match got {
+        TypeDescriptor::FixedUnicode(n) | TypeDescriptor::FixedAscii(n)
+            if n <= STR_CAP && a.size() == 1 => {}
+        _ => {
+            return Err(format!(
+                "{what} has type {got} and shape {:?}, expected one fixed-length string",
+                a.shape()
+            ))
+        }
     }
-    let v: VarLenUnicode = ds.read_scalar().ctx(what)?;
+    let v: FixedUnicode<STR_CAP> = a.read_scalar().ctx(&what)?;
     Ok(v.as_str().to_string())
 }
