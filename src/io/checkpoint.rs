@@ -583,7 +583,7 @@ fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck
     let r = &c.run;
     write!(
         s,
-        "run:        {} frames written, next frame at {} s, ",
+        "run:        frames written {}, next frame at {} s, ",
         r.frames_written, r.next_frame_time
     )?;
     match (r.stop_time, r.stop_step) {
