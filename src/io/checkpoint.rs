@@ -252,7 +252,7 @@ fn write_contents(
     let longest = names.iter().map(|n| n.len()).max().unwrap_or(0).max(1);
     params
         .new_attr_builder()
-        .with_data_as(&names[..], &TypeDescriptor::FixedUnicode(longest))
+        .with_data_as(&names[..], TypeDescriptor::FixedUnicode(longest))
         .create("phase_names")
         .ctx("cannot write /params@phase_names")?;
     write_str_attr(&params, "units", PARAM_UNITS)?;
@@ -379,7 +379,7 @@ fn fixed<const N: usize>(value: &str) -> Result<FixedUnicode<N>, String> {
 fn write_str_attr(loc: &Location, name: &str, value: &str) -> Result<(), String> {
     let v = fixed::<STR_CAP>(value)?;
     loc.new_attr_builder()
-        .empty_as(&TypeDescriptor::FixedUnicode(v.len().max(1)))
+        .empty_as(TypeDescriptor::FixedUnicode(v.len().max(1)))
         .shape(())
         .create(name)
         .and_then(|a| a.as_writer().write_scalar(&v))
