@@ -639,7 +639,9 @@ impl<'a> Reader<'a> {
                 // truncated by another process while it is being read can
                 // still fault (SIGBUS), as with any memory map; porosph never
                 // modifies a checkpoint once it has its final name.
-                let map = unsafe { memmap2::Mmap::map(&f) }
+                // MAP_POPULATE: map every page now, in one pass, rather than
+                // fault them in one by one while copying.
+                let map = unsafe { memmap2::MmapOptions::new().populate().map(&f) }
                     .map_err(|e| IoError::new(path, format!("cannot map: {e}")))?;
                 Some(map)
             }
