@@ -40,7 +40,8 @@ struct RunArgs {
     frame_every: Option<f64>,
     /// Write a checkpoint (complete state, HDF5) to OUT/checkpoints/ckpt_<step>.h5
     /// every SECONDS of simulated time (`0.1` or `0.1s`) or every N steps
-    /// (`500steps`). Resume: default the saved run's schedule.
+    /// (`500steps`). Resume: default the saved run's schedule. A step that
+    /// fails (NaN, explosion) always writes OUT/checkpoints/ckpt_<step>_failed.h5.
     #[arg(long, value_name = "SECONDS|Nsteps", value_parser = parse_every)]
     checkpoint_every: Option<CheckpointEvery>,
     /// Keep the newest N checkpoints (default 3; resume: the saved run's).

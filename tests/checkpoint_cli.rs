@@ -194,3 +194,39 @@ fn bad_checkpoint_arguments_are_rejected() {
         assert!(err.contains(want), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn checkpoints_every_simulated_interval() {
+    let dir = TempDir::new("cli-seconds");
+    let scene = scene_file(&dir);
+    let out = dir.path("run");
+    // dt = 0.002 s (max_dt; the CFL step is longer at these speeds): the
+    // first steps at or past 0.01, 0.02, 0.03 s are steps 5, 10, 15.
+    let r = porosph(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--until",
+        "0.032",
+        "--checkpoint-every",
+        "0.01s",
+        "--keep",
+        "5",
+        "--quiet",
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let mut names: Vec<String> = fs::read_dir(out.join("checkpoints"))
+        .expect("checkpoints/")
+        .map(|e| e.expect("entry").file_name().into_string().expect("name"))
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["ckpt_00000005.h5", "ckpt_00000010.h5", "ckpt_00000015.h5"]
+    );
+    let c = read_checkpoint(&out.join("checkpoints/ckpt_00000015.h5"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.run.checkpoint_every, "0.01s");
+    assert_eq!(c.run.stop_time, Some(0.032));
+}

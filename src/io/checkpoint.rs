@@ -463,20 +463,13 @@ pub fn read_checkpoint_with(path: &Path, method: ReadMethod) -> Result<Checkpoin
     r.read().map_err(|reason| IoError::new(path, reason))
 }
 
-/// Reads a checkpoint and rebuilds the simulation it holds, ready to step.
-pub fn load_checkpoint(path: &Path) -> Result<(Simulation, Checkpoint), IoError> {
-    let mut ckpt = read_checkpoint(path)?;
-    let empty = SavedState {
-        scene: ckpt.state.scene.clone(),
-        fluid: FluidStore::default(),
-        walls: WallStore::default(),
-        time: ckpt.state.time,
-        step: ckpt.state.step,
-        dt: ckpt.state.dt,
-    };
-    let state = std::mem::replace(&mut ckpt.state, empty);
+/// Reads a checkpoint and rebuilds the simulation it holds, ready to step,
+/// with where the run stood. (A diagnostic checkpoint loads too; its
+/// `failure` is in [`read_checkpoint`]'s result.)
+pub fn load_checkpoint(path: &Path) -> Result<(Simulation, RunInfo), IoError> {
+    let Checkpoint { state, run, .. } = read_checkpoint(path)?;
     let sim = Simulation::from_saved_state(state).map_err(|e| IoError::new(path, e))?;
-    Ok((sim, ckpt))
+    Ok((sim, run))
 }
 
 /// What a file is, judged by its content rather than its name.

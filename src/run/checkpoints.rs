@@ -83,8 +83,8 @@ const TIME_EPS: f64 = 1e-9;
 impl Checkpoints {
     /// Checkpoints in `dir` on schedule `every`, keeping `keep` (at least 1).
     /// With a schedule, creates the directory now (so an unwritable one is
-    /// reported before the run starts) and removes temporary files left by
-    /// a run that was killed while writing.
+    /// reported before the run starts). Removes temporary files left by a
+    /// run that was killed while writing.
     pub fn new(dir: &Path, every: Option<CheckpointEvery>, keep: usize) -> Result<Self, IoError> {
         let mut c = Self {
             dir: dir.to_path_buf(),
@@ -95,11 +95,11 @@ impl Checkpoints {
         if every.is_some() {
             fs::create_dir_all(dir)
                 .map_err(|e| IoError::new(dir, format!("cannot create directory: {e}")))?;
-            for name in c.list(|n| n.starts_with(".ckpt_") && n.ends_with(".h5.tmp")) {
-                let _ = fs::remove_file(dir.join(name));
-            }
-            c.last_good = c.regular().last().map(|(_, name)| dir.join(name));
         }
+        for name in c.list(|n| n.starts_with(".ckpt_") && n.ends_with(".h5.tmp")) {
+            let _ = fs::remove_file(dir.join(name));
+        }
+        c.last_good = c.regular().last().map(|(_, name)| dir.join(name));
         Ok(c)
     }
 
