@@ -22,13 +22,19 @@
 //! bytes as stored (h5py: `xxhash.xxh64(ds[()].tobytes()).intdigest()`), and
 //! every dataset is read back through its checksum. The file is written with
 //! the HDF5 1.8 object format, whose metadata (superblock, object headers and
-//! so the scalar attributes) carries HDF5's own checksums.
+//! so the scalar attributes) carries HDF5's own checksums. Strings are
+//! fixed-length (h5py gives `bytes`: `f.attrs["format"].decode()`), and the
+//! scene text is a byte dataset (`f["scene"][()].tobytes().decode()`):
+//! variable-length strings would live in HDF5's global heap, which has no
+//! checksum, and a damaged heap crashed the HDF5 library in our tests.
 //!
 //! The particle arrays come from the stores' field registry
 //! ([`FluidStore::for_each_column`]): an array added to a store later is
-//! saved and restored with no change here. Datasets are contiguous and
-//! uncompressed, so a checkpoint is written at disk speed and a reader can
-//! take the bytes straight from a memory map ([`ReadMethod::Mmap`]).
+//! saved and restored with no change here (a file from before it then lacks
+//! that dataset, and reading it is an error rather than a silent default).
+//! Datasets are contiguous and uncompressed, so a checkpoint is written at
+//! disk speed; a reader can also take the bytes straight from a memory map
+//! ([`ReadMethod::Mmap`]), which measured no faster (bench/RESULTS.md).
 
 use super::xxh64::Xxh64;
 use super::IoError;
@@ -65,8 +71,8 @@ pub struct RunInfo {
     pub stop_time: Option<f64>,
     /// The run stops after this step (if it stops by step count).
     pub stop_step: Option<u64>,
-    /// The checkpoint schedule as given on the command line (`0.1`,
-    /// `500steps`); empty if the run wrote none.
+    /// The checkpoint schedule in the form `--checkpoint-every` reads
+    /// (`0.1s`, `500steps`); empty if the run wrote none.
     pub checkpoint_every: String,
     /// Checkpoints kept.
     pub keep: u32,
@@ -614,6 +620,8 @@ fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck
 /// through HDF5 or a memory map.
 struct Reader<'a> {
     file: &'a File,
+    /// Size of the file, bytes: no dataset can hold more.
+    file_len: u64,
     map: Option<memmap2::Mmap>,
     /// Stop at the first checksum that fails (else collect them all).
     strict: bool,
@@ -639,8 +647,12 @@ impl<'a> Reader<'a> {
                 Some(map)
             }
         };
+        let file_len = fs::metadata(path)
+            .map_err(|e| IoError::new(path, format!("cannot read: {e}")))?
+            .len();
         Ok(Self {
             file,
+            file_len,
             map,
             strict,
             checks: Vec::new(),
@@ -849,6 +861,14 @@ impl<'a> Reader<'a> {
             return Err(format!(
                 "{what} has shape {:?}, expected {shape:?}",
                 ds.shape()
+            ));
+        }
+        let bytes = shape.iter().try_fold(4u64, |b, &d| b.checked_mul(d as u64));
+        if bytes.is_none_or(|b| b > self.file_len) {
+            return Err(format!(
+                "{what} claims more data ({shape:?} values) than the file holds ({} bytes): \
+                 damaged or truncated",
+                self.file_len
             ));
         }
         let mut h = Xxh64::new(0);
