@@ -1,10 +1,11 @@
 //! The `porosph` command line (DESIGN.md, "Interfaces users rely on").
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use porosph::builtin;
+use porosph::io::checkpoint::{file_kind, inspect_checkpoint, read_checkpoint, FileKind};
 use porosph::io::inspect_frame;
 use porosph::pipeline::Simulation;
-use porosph::run::{run, RunError, RunOptions};
+use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -16,6 +17,42 @@ struct Cli {
     command: Command,
 }
 
+/// Options shared by `run` and `resume`.
+#[derive(Args)]
+struct RunArgs {
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Stop at this simulated time, s (run: default the scene's end_time;
+    /// resume: default where the saved run was going to stop).
+    #[arg(long, conflicts_with = "steps")]
+    until: Option<f64>,
+    /// Stop after this many steps (resume: this many more steps).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Simulated time between frames, s (run: default the scene's
+    /// frame_interval; resume: default the saved run's).
+    #[arg(long)]
+    frame_every: Option<f64>,
+    /// Write a checkpoint (complete state, HDF5) to OUT/checkpoints/ckpt_<step>.h5
+    /// every SECONDS of simulated time (`0.1` or `0.1s`) or every N steps
+    /// (`500steps`). Resume: default the saved run's schedule. A step that
+    /// fails (NaN, explosion) always writes OUT/checkpoints/ckpt_<step>_failed.h5.
+    #[arg(long, value_name = "SECONDS|Nsteps", value_parser = parse_every)]
+    checkpoint_every: Option<CheckpointEvery>,
+    /// Keep the newest N checkpoints (default 3; resume: the saved run's).
+    #[arg(long, value_name = "N")]
+    keep: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Testing aid: set a fluid velocity to NaN before the step that starts
+    /// at step N, to exercise the failure path (diagnostic checkpoint,
+    /// non-zero exit).
+    #[arg(long, value_name = "N", hide = true)]
+    inject_nan_at_step: Option<u64>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run a scene (a TOML file or a built-in name; default: the built-in dam break).
@@ -25,29 +62,34 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
-        /// Worker threads (default: all cores).
+        #[command(flatten)]
+        args: RunArgs,
+    },
+    /// Continue a run from a checkpoint: the resumed run computes bitwise
+    /// what the run would have computed without stopping (CPU).
+    Resume {
+        /// A checkpoint file (OUT/checkpoints/ckpt_<step>.h5).
+        checkpoint: PathBuf,
+        /// Output directory (default: the checkpoint's run directory, the
+        /// parent of its checkpoints/ folder): frames continue their
+        /// numbering, stats.csv is continued from the checkpoint's step.
         #[arg(long)]
-        threads: Option<usize>,
-        /// Stop at this simulated time, s (default: the scene's end_time).
-        #[arg(long, conflicts_with = "steps")]
-        until: Option<f64>,
-        /// Stop after this many steps.
-        #[arg(long)]
-        steps: Option<u64>,
-        /// Simulated time between frames, s (default: the scene's frame_interval).
-        #[arg(long)]
-        frame_every: Option<f64>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
+        out: Option<PathBuf>,
+        #[command(flatten)]
+        args: RunArgs,
     },
     /// List the built-in scenes and the example scenes in ./scenes.
     Scenes,
-    /// Print what a frame file holds.
+    /// Print what a frame or checkpoint file holds; for a checkpoint, also
+    /// check every dataset's checksum (exit status 1 if one fails).
     Inspect {
-        /// A frame (.vtkhdf) file.
+        /// A frame (.vtkhdf) or checkpoint (.h5) file; recognised by content.
         file: PathBuf,
     },
+}
+
+fn parse_every(s: &str) -> Result<CheckpointEvery, String> {
+    s.parse()
 }
 
 fn load_scene(arg: Option<&str>) -> Result<Scene, String> {
@@ -71,52 +113,168 @@ fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
     }
 }
 
+impl RunArgs {
+    fn check(&self) -> Result<(), String> {
+        positive("until", self.until)?;
+        positive("frame-every", self.frame_every)?;
+        if self.threads == Some(0) {
+            return Err("--threads must be at least 1".to_string());
+        }
+        if self.keep == Some(0) {
+            return Err("--keep must be at least 1".to_string());
+        }
+        Ok(())
+    }
+
+    /// A thread pool of `--threads` threads (default: all cores).
+    fn pool(&self) -> Result<rayon::ThreadPool, String> {
+        let mut b = rayon::ThreadPoolBuilder::new();
+        if let Some(t) = self.threads {
+            b = b.num_threads(t);
+        }
+        b.build().map_err(|e| format!("cannot start {:?} threads: {e}", self.threads))
+    }
+}
+
+/// Runs `sim` and reports how it went.
+fn execute(sim: &mut Simulation, opts: &RunOptions) -> Result<(), String> {
+    match run(sim, opts) {
+        Ok(s) => {
+            if !opts.quiet {
+                eprintln!(
+                    "porosph: {} steps, {} frames, {:.1} s wall, {:.3} M particle-steps/s",
+                    s.steps,
+                    s.frames,
+                    s.wall_seconds,
+                    s.particle_steps_per_second / 1e6
+                );
+            }
+            Ok(())
+        }
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), String> {
+    a.check()?;
+    let scene = load_scene(scene.as_deref())?;
+    a.pool()?.install(|| {
+        let origin = scene.origin.clone();
+        let mut sim = Simulation::new(scene);
+        if !a.quiet {
+            eprintln!(
+                "porosph: {origin}: {} fluid + {} wall particles, {} threads, output in {}",
+                sim.fluid.len(),
+                sim.walls.len(),
+                rayon::current_num_threads(),
+                out.display()
+            );
+        }
+        let opts = RunOptions {
+            out: out.clone(),
+            until: a.until,
+            steps: a.steps,
+            frame_every: a.frame_every,
+            quiet: a.quiet,
+            checkpoint_every: a.checkpoint_every,
+            keep: a.keep.unwrap_or(DEFAULT_KEEP),
+            resume: None,
+            inject_nan_at_step: a.inject_nan_at_step,
+        };
+        execute(&mut sim, &opts)
+    })
+}
+
+/// The run directory of a checkpoint: the parent of its `checkpoints/`
+/// folder, or the folder it is in.
+fn run_dir_of(checkpoint: &Path) -> PathBuf {
+    let dir = match checkpoint.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if dir.file_name().is_some_and(|n| n == "checkpoints") {
+        if let Some(p) = dir.parent() {
+            return if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.to_path_buf() };
+        }
+    }
+    dir
+}
+
+fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(), String> {
+    a.check()?;
+    let ckpt = read_checkpoint(&path).map_err(|e| e.to_string())?;
+    if let Some(f) = &ckpt.failure {
+        return Err(format!(
+            "{}: a diagnostic checkpoint, written when the run failed ({f}); \
+             resume from an earlier checkpoint",
+            path.display()
+        ));
+    }
+    let r = ckpt.run.clone();
+    let out = out.unwrap_or_else(|| run_dir_of(&path));
+    let (time, step) = (ckpt.state.time, ckpt.state.step);
+    // Where to stop: as asked, else where the saved run was going to stop.
+    let (until, steps) = match (a.until, a.steps, r.stop_time, r.stop_step) {
+        (None, None, _, Some(s)) => (None, Some(s.saturating_sub(step))),
+        (None, None, t, None) => (t, None),
+        (u, s, _, _) => (u, s),
+    };
+    let checkpoint_every = match (a.checkpoint_every, r.checkpoint_every.as_str()) {
+        (Some(c), _) => Some(c),
+        (None, "") => None,
+        (None, saved) => Some(saved.parse().map_err(|e| format!("{}: /run@checkpoint_every: {e}", path.display()))?),
+    };
+    let frame_every = a.frame_every.unwrap_or(r.frame_every);
+    let next_frame =
+        if frame_every.to_bits() == r.frame_every.to_bits() { r.next_frame_time } else { time + frame_every };
+    let opts = RunOptions {
+        out: out.clone(),
+        until,
+        steps,
+        frame_every: Some(frame_every),
+        quiet: a.quiet,
+        checkpoint_every,
+        keep: a.keep.unwrap_or_else(|| usize::try_from(r.keep).unwrap_or(DEFAULT_KEEP)),
+        resume: Some(Continuation { frames: r.frames_written, next_frame }),
+        inject_nan_at_step: a.inject_nan_at_step,
+    };
+    a.pool()?.install(|| {
+        let mut sim = Simulation::from_saved_state(ckpt.state).map_err(|e| format!("{}: {e}", path.display()))?;
+        if !a.quiet {
+            eprintln!(
+                "porosph: resuming {} at step {step} (t = {time} s): {} fluid + {} wall particles, \
+                 {} threads, output in {}",
+                path.display(),
+                sim.fluid.len(),
+                sim.walls.len(),
+                rayon::current_num_threads(),
+                out.display()
+            );
+        }
+        execute(&mut sim, &opts)
+    })
+}
+
+fn inspect_command(file: &Path) -> Result<(), String> {
+    match file_kind(file).map_err(|e| e.to_string())? {
+        FileKind::Frame => inspect_frame(file).map(|s| print!("{s}")).map_err(|e| e.to_string()),
+        FileKind::Checkpoint => {
+            let i = inspect_checkpoint(file).map_err(|e| e.to_string())?;
+            print!("{}", i.text);
+            if i.checksums_hold {
+                Ok(())
+            } else {
+                Err(format!("{}: checksums do not hold: the file is damaged", file.display()))
+            }
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scene, out, threads, until, steps, frame_every, quiet } => (|| {
-            positive("until", until)?;
-            positive("frame-every", frame_every)?;
-            if threads == Some(0) {
-                return Err("--threads must be at least 1".to_string());
-            }
-            let scene = load_scene(scene.as_deref())?;
-            let mut b = rayon::ThreadPoolBuilder::new();
-            if let Some(t) = threads {
-                b = b.num_threads(t);
-            }
-            let pool = b.build().map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
-            pool.install(|| {
-                let origin = scene.origin.clone();
-                let mut sim = Simulation::new(scene);
-                if !quiet {
-                    eprintln!(
-                        "porosph: {origin}: {} fluid + {} wall particles, {} threads, output in {}",
-                        sim.fluid.len(),
-                        sim.walls.len(),
-                        rayon::current_num_threads(),
-                        out.display()
-                    );
-                }
-                let opts = RunOptions { out: out.clone(), until, steps, frame_every, quiet };
-                match run(&mut sim, &opts) {
-                    Ok(s) => {
-                        if !quiet {
-                            eprintln!(
-                                "porosph: {} steps, {} frames, {:.1} s wall, {:.3} M particle-steps/s",
-                                s.steps,
-                                s.frames,
-                                s.wall_seconds,
-                                s.particle_steps_per_second / 1e6
-                            );
-                        }
-                        Ok(())
-                    }
-                    Err(RunError::Step(e)) => Err(format!("simulation stopped: {e}")),
-                    Err(e) => Err(e.to_string()),
-                }
-            })
-        })(),
+        Command::Run { scene, out, args } => run_command(scene, out, args),
+        Command::Resume { checkpoint, out, args } => resume_command(checkpoint, out, args),
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {
@@ -138,7 +296,7 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
-        Command::Inspect { file } => inspect_frame(&file).map(|s| print!("{s}")).map_err(|e| e.to_string()),
+        Command::Inspect { file } => inspect_command(&file),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,9 +1,12 @@
 //! Output and input files: frames for viewers (VTKHDF), the frame series
-//! index, per-step statistics, and reading them back for `porosph inspect`.
+//! index, per-step statistics, checkpoints (complete state, HDF5), and
+//! reading them back for `porosph inspect` and `porosph resume`.
 
+pub mod checkpoint;
 mod series;
 mod stats;
 mod vtkhdf;
+pub mod xxh64;
 
 pub use series::SeriesWriter;
 pub use stats::StatsWriter;

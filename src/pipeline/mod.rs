@@ -2,10 +2,12 @@
 //! Algorithm 1), each timed by name. [`Simulation`] owns the particle store,
 //! the neighbour structures and the per-step arena.
 
+mod restore;
 mod setup;
 mod step;
 pub mod timing;
 
+pub use restore::SavedState;
 pub use step::StepError;
 pub use timing::{PassTimes, PASSES};
 

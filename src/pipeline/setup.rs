@@ -73,20 +73,10 @@ impl Simulation {
         walls.sigma_static = vec![0.0; nw];
         walls.id = (nf as u32..(nf + nw) as u32).collect();
 
-        let mut work = Workspace::default();
-        // Walls never move: sort them once and build their grid once.
-        let inv_cell = 1.0 / params.kernel.support;
-        work.keys.resize(nw, 0);
-        compute_keys(&walls.x, &walls.y, &walls.z, inv_cell, &mut work.keys);
-        sort_permutation(&work.keys, &mut work.sort, &mut work.perm);
-        walls.reorder(&work.perm, &mut work.reorder);
-        let sorted: Vec<u64> = work.sort.iter().map(|&(k, _)| k).collect();
-        work.wall_grid.build(&sorted, params.kernel.support);
+        let work = wall_workspace(&mut walls, &params);
         let mut bb = PairLists::default();
         let pts = Points { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut bb, pts, pts, &work.wall_grid, None, &params.kernel);
-        let near = work.wall_grid.dilated_keys();
-        work.wall_near.build(&near, params.kernel.support);
         // Rest volume of a wall particle (PHYSICS.md §2.3, Akinci-style):
         // V0_b = gamma / sum_{b'} W_bb' over the wall (incl. self), with gamma
         // the value of d^3 sum W over a flat wall of two lattice layers. So
@@ -131,6 +121,24 @@ impl Simulation {
         sim.dt = sim.next_dt(v0);
         sim
     }
+}
+
+/// A fresh workspace for `walls`: walls never move, so they are sorted along
+/// the Morton curve once and their grid is built once, here. Walls that are
+/// already sorted (restored from a checkpoint) keep their order: the sort
+/// breaks ties by index, so its permutation is the identity.
+pub(super) fn wall_workspace(walls: &mut WallStore, params: &Params) -> Workspace {
+    let mut work = Workspace::default();
+    let inv_cell = 1.0 / params.kernel.support;
+    work.keys.resize(walls.len(), 0);
+    compute_keys(&walls.x, &walls.y, &walls.z, inv_cell, &mut work.keys);
+    sort_permutation(&work.keys, &mut work.sort, &mut work.perm);
+    walls.reorder(&work.perm, &mut work.reorder);
+    let sorted: Vec<u64> = work.sort.iter().map(|&(k, _)| k).collect();
+    work.wall_grid.build(&sorted, params.kernel.support);
+    let near = work.wall_grid.dilated_keys();
+    work.wall_near.build(&near, params.kernel.support);
+    work
 }
 
 /// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of two

@@ -1,10 +1,15 @@
-//! A run: steps the simulation to its end, writes frames on schedule and a
-//! stats row per step, and shows progress.
+//! A run: steps the simulation to its end, writes frames and checkpoints on
+//! schedule and a stats row per step, and shows progress. A run that
+//! resumes from a checkpoint goes on where the saved run stood: the same
+//! frame numbers and schedule, appending to the same `stats.csv`.
 
+mod checkpoints;
 mod frame;
 
+pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
 pub use frame::kind;
 
+use crate::io::checkpoint::RunInfo;
 use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -25,12 +30,51 @@ pub struct RunOptions {
     pub frame_every: Option<f64>,
     /// No progress bar.
     pub quiet: bool,
+    /// Checkpoint schedule (none: only a diagnostic checkpoint if a step fails).
+    pub checkpoint_every: Option<CheckpointEvery>,
+    /// Checkpoints kept (the newest ones; at least 1).
+    pub keep: usize,
+    /// Where a resumed run's output continues (`None`: a new run).
+    pub resume: Option<Continuation>,
+    /// Testing aid: sets a fluid velocity to NaN just before the step that
+    /// starts at this step number, to exercise the failure path.
+    pub inject_nan_at_step: Option<u64>,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("out"),
+            until: None,
+            steps: None,
+            frame_every: None,
+            quiet: false,
+            checkpoint_every: None,
+            keep: DEFAULT_KEEP,
+            resume: None,
+            inject_nan_at_step: None,
+        }
+    }
+}
+
+/// Checkpoints kept by default.
+pub const DEFAULT_KEEP: usize = 3;
+
+/// Where the output of a resumed run continues.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Continuation {
+    /// Frames the run had written: the number of its next frame.
+    pub frames: u64,
+    /// Simulated time of its next frame, s.
+    pub next_frame: f64,
 }
 
 /// What a finished run did.
 #[derive(Clone, Debug, Default)]
 pub struct RunSummary {
+    /// Steps taken by this run.
     pub steps: u64,
+    /// Frames written by this run.
     pub frames: u64,
     pub wall_seconds: f64,
     pub particle_steps_per_second: f64,
@@ -40,14 +84,40 @@ pub struct RunSummary {
 #[derive(Debug)]
 pub enum RunError {
     Io(IoError),
-    Step(StepError),
+    /// A step failed (NaN, explosion); the diagnostic checkpoint holds the
+    /// state after it, or says why it could not be written.
+    Step {
+        error: StepError,
+        diagnostic: Result<PathBuf, IoError>,
+    },
+    /// A checkpoint could not be written; nothing already written is lost,
+    /// and `last_good` is the newest complete checkpoint.
+    Checkpoint {
+        error: IoError,
+        last_good: Option<PathBuf>,
+    },
 }
 
 impl fmt::Display for RunError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             RunError::Io(e) => write!(f, "{e}"),
-            RunError::Step(e) => write!(f, "{e}"),
+            RunError::Step { error, diagnostic } => {
+                write!(f, "simulation stopped at {error}; ")?;
+                match diagnostic {
+                    Ok(p) => write!(f, "diagnostic checkpoint: {}", p.display()),
+                    Err(e) => write!(f, "could not write the diagnostic checkpoint: {e}"),
+                }
+            }
+            RunError::Checkpoint { error, last_good } => {
+                write!(f, "cannot write a checkpoint: {error}; ")?;
+                match last_good {
+                    Some(p) => {
+                        write!(f, "nothing already written was lost, the newest complete checkpoint is {}", p.display())
+                    }
+                    None => write!(f, "no earlier checkpoint of this run exists"),
+                }
+            }
         }
     }
 }
@@ -81,17 +151,41 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     create_dir(&frames_dir)?;
     let scene_copy = opts.out.join("scene.toml");
     std::fs::write(&scene_copy, &sim.scene.text).map_err(|e| IoError::new(&scene_copy, e))?;
-    let mut stats = StatsWriter::create(&opts.out.join("stats.csv"), &stats_columns())?;
-    let mut series = SeriesWriter::new(&frames_dir.join("frames.vtkhdf.series"));
-    let end_time = opts.until.unwrap_or(sim.scene.simulation.end_time);
+    let stats_path = opts.out.join("stats.csv");
+    let series_path = frames_dir.join("frames.vtkhdf.series");
+    let (mut stats, mut series, mut frames, mut next_frame) = match opts.resume {
+        None => (StatsWriter::create(&stats_path, &stats_columns())?, SeriesWriter::new(&series_path), 0u64, 0.0f64),
+        Some(c) => (
+            StatsWriter::append(&stats_path, &stats_columns(), sim.step)?,
+            SeriesWriter::open_existing(&series_path)?,
+            c.frames,
+            c.next_frame,
+        ),
+    };
+    let first_frame = frames;
+    let mut checkpoints = Checkpoints::new(&opts.out.join("checkpoints"), opts.checkpoint_every, opts.keep)?;
+    let first_step = sim.step;
+    let (stop_time, stop_step) = match opts.steps {
+        Some(s) => (None, Some(first_step.saturating_add(s))),
+        None => (Some(opts.until.unwrap_or(sim.scene.simulation.end_time)), None),
+    };
     let frame_every = opts.frame_every.unwrap_or(sim.scene.simulation.frame_interval);
+    let run_info = |frames: u64, next_frame: f64| RunInfo {
+        frames_written: frames,
+        next_frame_time: next_frame,
+        frame_every,
+        stop_time,
+        stop_step,
+        checkpoint_every: opts.checkpoint_every.map(|c| c.to_string()).unwrap_or_default(),
+        keep: u32::try_from(opts.keep).unwrap_or(u32::MAX),
+    };
 
     let bar = if opts.quiet {
         ProgressBar::hidden()
     } else {
         let (len, unit) = match opts.steps {
             Some(s) => (s, "steps"),
-            None => ((end_time * 1000.0).round() as u64, "ms simulated"),
+            None => ((stop_time.unwrap_or(0.0) * 1000.0).round() as u64, "ms simulated"),
         };
         let b = ProgressBar::new(len);
         b.set_style(
@@ -101,8 +195,6 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         b
     };
 
-    let mut frames = 0u64;
-    let mut next_frame = 0.0f64;
     let write = |sim: &Simulation, frames: &mut u64, series: &mut SeriesWriter| -> Result<(), IoError> {
         let name = format!("frame_{:05}.vtkhdf", *frames);
         write_frame(&frames_dir.join(&name), &sim.frame())?;
@@ -110,28 +202,36 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         *frames += 1;
         Ok(())
     };
-    if sim.time >= next_frame {
+    if opts.resume.is_none() && sim.time >= next_frame {
         write(sim, &mut frames, &mut series)?;
         next_frame = sim.time + frame_every;
     }
     let start = Instant::now();
-    let first_step = sim.step;
     let n = sim.fluid.len() as f64;
-    let done = |sim: &Simulation| match opts.steps {
-        Some(s) => sim.step - first_step >= s,
-        None => sim.time >= end_time - 1e-9,
+    let done = |sim: &Simulation| match (stop_step, stop_time) {
+        (Some(s), _) => sim.step >= s,
+        (None, Some(t)) => sim.time >= t - 1e-9,
+        (None, None) => true,
     };
     while !done(sim) {
+        if opts.inject_nan_at_step == Some(sim.step) {
+            if let Some(u) = sim.fluid.ux.first_mut() {
+                *u = f32::NAN;
+            }
+        }
         let t = Instant::now();
+        let previous_time = sim.time;
         let result = sim.step().copied();
         let st = match result {
             Ok(st) => st,
-            Err(e) => {
+            Err(error) => {
                 bar.abandon();
-                // Keep the last state for diagnosis.
+                // Keep the last state for diagnosis: as a frame to look at,
+                // and as a checkpoint to inspect or load.
                 let name = format!("frame_{:05}_failed.vtkhdf", frames);
                 let _ = write_frame(&frames_dir.join(name), &sim.frame());
-                return Err(RunError::Step(e));
+                let diagnostic = checkpoints.write_failed(sim, &run_info(frames, next_frame), &error.to_string());
+                return Err(RunError::Step { error, diagnostic });
             }
         };
         let ms_step = t.elapsed().as_secs_f64() * 1e3;
@@ -151,6 +251,12 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             write(sim, &mut frames, &mut series)?;
             next_frame += frame_every;
         }
+        if checkpoints.due(sim, previous_time) {
+            if let Err(error) = checkpoints.write(sim, &run_info(frames, next_frame)) {
+                bar.abandon();
+                return Err(RunError::Checkpoint { error, last_good: checkpoints.last_good().map(Path::to_path_buf) });
+            }
+        }
         let el = start.elapsed().as_secs_f64().max(1e-9);
         let taken = (sim.step - first_step) as f64;
         bar.set_position(match opts.steps {
@@ -162,5 +268,10 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     bar.finish_and_clear();
     let wall = start.elapsed().as_secs_f64();
     let steps = sim.step - first_step;
-    Ok(RunSummary { steps, frames, wall_seconds: wall, particle_steps_per_second: n * steps as f64 / wall.max(1e-9) })
+    Ok(RunSummary {
+        steps,
+        frames: frames - first_frame,
+        wall_seconds: wall,
+        particle_steps_per_second: n * steps as f64 / wall.max(1e-9),
+    })
 }
