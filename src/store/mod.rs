@@ -43,6 +43,28 @@ macro_rules! soa {
             pub fn for_each_column_mut(&mut self, mut f: impl FnMut(&'static str, &'static str, ColumnMut<'_>)) {
                 $( f(stringify!($f), $unit, soa!(@colmut &mut self.$f)); )*
             }
+
+            /// Number of particles (every store has positions `x`).
+            pub fn len(&self) -> usize {
+                self.x.len()
+            }
+
+            /// Whether the store is empty.
+            pub fn is_empty(&self) -> bool {
+                self.x.is_empty()
+            }
+
+            /// Moves every registered array by `perm` (`new[i] = old[perm[i]]`).
+            pub fn reorder(&mut self, perm: &[u32], scratch: &mut Scratch) {
+                self.for_each_column_mut(|_, _, c| scratch.permute(c, perm));
+            }
+
+            /// Bytes held by the registered arrays.
+            pub fn bytes(&self) -> usize {
+                let mut b = 0;
+                self.for_each_column(|_, _, c| b += column_bytes(&c));
+                b
+            }
         }
     };
     (@col $e:expr) => { IntoColumn::column($e) };
@@ -128,54 +150,6 @@ soa! {
         density: Vec<f32> ["kg/m^3"],
         /// Stable particle id (after the fluid ids).
         id: Vec<u32> [""],
-    }
-}
-
-impl FluidStore {
-    /// Number of particles.
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    /// Whether the store is empty.
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
-    /// Moves every registered array by `perm` (`new[i] = old[perm[i]]`).
-    pub fn reorder(&mut self, perm: &[u32], scratch: &mut Scratch) {
-        self.for_each_column_mut(|_, _, c| scratch.permute(c, perm));
-    }
-
-    /// Bytes held by the registered arrays (capacity).
-    pub fn bytes(&self) -> usize {
-        let mut b = 0;
-        self.for_each_column(|_, _, c| b += column_bytes(&c));
-        b
-    }
-}
-
-impl WallStore {
-    /// Number of particles.
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    /// Whether the store is empty.
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
-    /// Moves every registered array by `perm` (`new[i] = old[perm[i]]`).
-    pub fn reorder(&mut self, perm: &[u32], scratch: &mut Scratch) {
-        self.for_each_column_mut(|_, _, c| scratch.permute(c, perm));
-    }
-
-    /// Bytes held by the registered arrays.
-    pub fn bytes(&self) -> usize {
-        let mut b = 0;
-        self.for_each_column(|_, _, c| b += column_bytes(&c));
-        b
     }
 }
 
