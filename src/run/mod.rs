@@ -7,6 +7,7 @@ pub use frame::kind;
 
 use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
+use crate::scene::Phase;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -60,12 +61,16 @@ impl From<IoError> for RunError {
     }
 }
 
-/// Header of `stats.csv`.
-pub fn stats_columns() -> Vec<String> {
-    let mut c: Vec<String> = ["step", "time", "dt", "iterations", "density_error", "max_speed", "fluid_particles"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+/// Header of `stats.csv` for a scene with `phases`: then `volume_<phase>`
+/// (m^3, [`Simulation::phase_volumes`]) per phase in scene order, and
+/// `ms_<pass>` per pass.
+pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
+    let mut c: Vec<String> =
+        ["step", "time", "dt", "iterations", "density_error", "max_speed", "max_drift_speed", "fluid_particles"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+    c.extend(phases.iter().map(|p| format!("volume_{}", p.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c
@@ -81,7 +86,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     create_dir(&frames_dir)?;
     let scene_copy = opts.out.join("scene.toml");
     std::fs::write(&scene_copy, &sim.scene.text).map_err(|e| IoError::new(&scene_copy, e))?;
-    let mut stats = StatsWriter::create(&opts.out.join("stats.csv"), &stats_columns())?;
+    let mut stats = StatsWriter::create(&opts.out.join("stats.csv"), &stats_columns(&sim.scene.phases))?;
     let mut series = SeriesWriter::new(&frames_dir.join("frames.vtkhdf.series"));
     let end_time = opts.until.unwrap_or(sim.scene.simulation.end_time);
     let frame_every = opts.frame_every.unwrap_or(sim.scene.simulation.frame_interval);
@@ -123,7 +128,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     };
     while !done(sim) {
         let t = Instant::now();
-        let result = sim.step().map(|s| *s);
+        let result = sim.step().copied();
         let st = match result {
             Ok(st) => st,
             Err(e) => {
@@ -142,8 +147,10 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.iterations as f64,
             st.density_error as f64,
             st.max_speed as f64,
+            st.max_drift_speed as f64,
             n,
         ];
+        row.extend(sim.phase_volumes());
         row.extend(st.times.ms);
         row.push(ms_step);
         stats.row(&row)?;
