@@ -7,40 +7,55 @@
 //! u_mk = tau (rho_k - sum_k' c_k' rho_k') a - tau (grad p_k - sum_k' c_k' grad p_k')
 //!        - sigma (grad alpha_k / alpha_k - sum_k' c_k' grad alpha_k' / alpha_k').
 //!
-//! It is computed as u_mk = v_k - sum_k' c_k' v_k' from the unbalanced phase
-//! velocity v_k = tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k / alpha_k,
-//! which is P-Eq. 11 term by term when tau and sigma are the same for every
-//! phase, and keeps sum_k c_k u_mk = 0 (the drift of the mass-averaged
-//! velocity is 0) when a scene gives phases their own tau_k, sigma_k.
+//! It is computed as u_mk = v_k - s, s = sum_k' c_k' v_k', from the phase
+//! velocity v_k = tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k / alpha_k:
+//! P-Eq. 11 term by term when all phases share tau and sigma, and with
+//! sum_k c_k u_mk = 0 kept when a scene gives phases their own tau_k, sigma_k.
+//! s is summed from w_k = alpha_k v_k (c_k v_k = rho_k w_k / sum alpha rho),
+//! which has no division by alpha_k, so the mixture sums stay exact for a
+//! phase that is absent from the particle but not from its neighbours.
 //!
 //! - a = g - Du_m/Dt, implemented as a = -(a^visc + a^p), minus the
 //!   particle's non-gravity accelerations of this step (PHYSICS.md §4.1).
-//! - Phase pressure p_k = alphahat_k p with alphahat_k = alpha_k / alpha_f
-//!   and p the solved IISPH pressure ([AC]; PHYSICS.md §4.1), the default;
-//!   or, with the scene's `phase_pressure = "shared"`, p_k = p for every
-//!   phase, whose two pressure terms cancel. In a column at rest
-//!   (grad p = rho_m g, a = g) the default adds to a two-phase drift
-//!   u_mh - u_ml = tau g [(rho_h - rho_l) - rho_m (alpha_h - alpha_l)]: the
-//!   second part opposes settling and stops it where the bracket is 0, at
-//!   alpha_h = 0.69 for rho_h / rho_l = 1.5 (0.59 for 1.2), so a suspension
-//!   never separates completely; with the shared pressure it does
-//!   (the drift is Manninen's buoyancy slip tau (rho_k - sum c rho) a).
-//!   [inferred]
+//!   tau is not divided by the viscosity ([AC] does; a Stokes-like
+//!   d^2 / (18 mu) belongs in the scene's value), so tau is in
+//!   m^2/(Pa s) = m^3 s/kg (PHYSICS.md §7).
 //! - Gradients in difference form over fluid neighbours,
 //!   grad A_i = sum_j Vbar_ij (A_j - A_i) grad W_ij, with the harmonic pair
 //!   volume Vbar_ij of the pressure solve (the pair lists hold
 //!   Vbar_ij grad W_ij after `iisph::scale_by_pair_volume`); in the bulk
 //!   Vbar_ij = V_j, the volume PHYSICS.md §4.1 writes.
-//! - Guards: no diffusion term for phase k where alphahat_k < 0.01; u_mk = 0
-//!   where alpha_f < 0.01.
+//! - Guards (PHYSICS.md §4.1): the term sigma grad alpha_k / alpha_k of
+//!   u_mk itself is dropped where alphahat_k < 0.01; everything is 0 where
+//!   alpha_f < 0.01.
+//! - Phase pressures p_k [inferred]. The scene's `phase_pressure` picks:
+//!   - `"shared"` (default): p_k = p for every phase, so the two pressure
+//!     terms cancel and u_mk = tau (rho_k - sum c rho) a - sigma (...), the
+//!     buoyancy slip of Manninen's mixture model (where grad p = rho_m a is
+//!     what makes the buoyancy).
+//!   - `"fraction"`: p_k = alphahat_k p with alphahat_k = alpha_k / alpha_f
+//!     and p the solved IISPH pressure, as PHYSICS.md §4.1 writes it after
+//!     [AC]. grad p_k = alphahat_k grad p + p grad alphahat_k; the second
+//!     part depends on where p is zero (not a physical property) and acts
+//!     as a diffusion of fractions with coefficient about 2 tau p alpha c
+//!     (up to 0.006 m^2/s at 0.4 m depth of water with tau = 3e-6, six
+//!     times the paper's sigma), which is unstable for
+//!     dt > 0.1 h^2 / (2 tau p alpha c)
+//!     and picks up the IISPH pressure's step-to-step noise. In a column at
+//!     rest (grad p = rho_m g, a = g) the first part gives a two-phase drift
+//!     u_mh - u_ml = tau g [(rho_h - rho_l) - rho_m (alpha_h - alpha_l)],
+//!     which stops settling where the bracket is 0: at alpha_h = 0.69 for
+//!     rho_h / rho_l = 1.5, 0.59 for 1.2. A suspension never separates
+//!     completely (`tests/mixture.rs` checks both forms).
 //!
 //! Three gathers, each writing its own arrays (so the GPU twin,
 //! `shaders/drift.wgsl`, can use the same function names):
-//! 1. [`phase_velocity`], once per phase: v_k.
-//! 2. [`mixture_velocity`]: s = sum_k c_k v_k and the volume-weighted drift
-//!    of the mixture j = sum_k alphahat_k (v_k - s) = sum_k alphahat_k u_mk.
-//! 3. [`drift_velocity`], once per phase: u_mk = v_k - s in place, and the
-//!    phase flux F_k = alpha_k (u_mk - j) for the transport.
+//! 1. [`phase_velocity`], once per phase: v_k and w_k.
+//! 2. [`mixture_velocity`]: s = sum_k c_k v_k and the volume-weighted mean
+//!    phase velocity m = sum_k alphahat_k v_k.
+//! 3. [`drift_velocity`], once per phase: u_mk = v_k - s (over v_k), and
+//!    the phase flux F_k = w_k - alpha_k m = alpha_k (u_mk - j) for the
+//!    transport (over w_k), j = sum_k alphahat_k u_mk.
 //!
 //! Why the (default, conservative) transport moves F_k = alpha_k (u_mk - j)
 //! rather than alpha_k u_mk [inferred]: u_mk is the phase velocity relative
@@ -55,7 +70,10 @@
 //! model with the particles moving at the volume-averaged velocity, the
 //! one that is divergence-free, as IISPH makes the particle velocity. The
 //! top of a settling two-phase suspension falls at
-//! alpha_l |u_mh - u_ml| = (rho_m / rho_l) |u_mh| either way.
+//! alpha_l |u_mh - u_ml| = (rho_m / rho_l) |u_mh| either way. The sigma
+//! part of F_k is -sigma grad alpha_k + alpha_k sum_k' sigma_k' grad alpha_k'
+//! (Fick's law for equal sigma), also between two pure particles, where
+//! alpha_k u_mk would be 0.
 
 use crate::blocks::BLOCK;
 use crate::iisph::Vel;
