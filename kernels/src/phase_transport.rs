@@ -38,47 +38,52 @@ use crate::blocks::BLOCK;
 use crate::iisph::Vel;
 use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::PairLists;
-use crate::phases::PhaseVel;
 use rayon::prelude::*;
 use wide::Select;
 
-/// Pass 12, conservative transport, step 1 for phase k: the outflow limit
-/// lambda_k,i = min(1, alpha_k,i / (dt O_k,i)), where
-/// O_k,i = sum_j max(phi_k,ij, 0) is the rate at which the pair fluxes
-/// phi_k,ij = (F_k,i + F_k,j) . Vbar_ij grad W_ij take phase k out of
+/// Pass 12, conservative transport, step 1 for phase k: the pair fluxes
+/// phi_k,ij = (F_k,i + F_k,j) . Vbar_ij grad W_ij, stored per pair in
+/// `pair_flux` (`pair_flux[b]` for block b of `ff`, in its pair order), and
+/// the outflow limit lambda_k,i = min(1, alpha_k,i / (dt O_k,i)), where
+/// O_k,i = sum_j max(phi_k,ij, 0) is the rate at which phase k leaves
 /// particle i (1 where nothing leaves). `flux` is F_k.
-pub fn outflow_limit(ff: &PairLists, alpha_k: &[f32], flux: Vel, dt: f32, out: &mut [f32]) {
-    out.par_chunks_mut(BLOCK).zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
-        for (q, o) in o.iter_mut().enumerate() {
-            let i = b * BLOCK + q;
-            let (fxi, fyi, fzi) = (F::splat(flux.x[i]), F::splat(flux.y[i]), F::splat(flux.z[i]));
-            let mut acc = F::ZERO;
-            let r = blk.range(q);
-            let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-            let mut p = r.start;
-            while p < r.end {
-                let phi = (gather(flux.x, j, p) + fxi) * load(gx, p)
-                    + (gather(flux.y, j, p) + fyi) * load(gy, p)
-                    + (gather(flux.z, j, p) + fzi) * load(gz, p);
-                acc += phi.max(F::ZERO);
-                p += LANES;
+pub fn outflow_limit(ff: &PairLists, alpha_k: &[f32], flux: Vel, dt: f32, out: &mut [f32], pair_flux: &mut [Vec<f32>]) {
+    out.par_chunks_mut(BLOCK).zip(ff.used().par_iter().zip(pair_flux.par_iter_mut())).enumerate().for_each(
+        |(b, (o, (blk, phi_out)))| {
+            phi_out.clear();
+            phi_out.resize(blk.len(), 0.0);
+            for (q, o) in o.iter_mut().enumerate() {
+                let i = b * BLOCK + q;
+                let (fxi, fyi, fzi) = (F::splat(flux.x[i]), F::splat(flux.y[i]), F::splat(flux.z[i]));
+                let mut acc = F::ZERO;
+                let r = blk.range(q);
+                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+                let mut p = r.start;
+                while p < r.end {
+                    let phi = (gather(flux.x, j, p) + fxi) * load(gx, p)
+                        + (gather(flux.y, j, p) + fyi) * load(gy, p)
+                        + (gather(flux.z, j, p) + fzi) * load(gz, p);
+                    store(phi_out, p, phi);
+                    acc += phi.max(F::ZERO);
+                    p += LANES;
+                }
+                let leaving = dt * sum(acc);
+                *o = if leaving > alpha_k[i] { alpha_k[i].max(0.0) / leaving } else { 1.0 };
             }
-            let leaving = dt * sum(acc);
-            *o = if leaving > alpha_k[i] { alpha_k[i].max(0.0) / leaving } else { 1.0 };
-        }
-    });
+        },
+    );
 }
 
 /// Pass 12, conservative transport, step 2: the limit of every pair,
 /// Lambda_ij = min over phases k of the outflow limit of the particle that
-/// phase k leaves in that pair (lambda_k,i if phi_k,ij > 0, else
-/// lambda_k,j). It is the same for all phases and for (i, j) and (j, i), so
-/// the limited pair fluxes stay antisymmetric and add up to 0 over the
+/// phase k leaves in that pair (lambda_k,i if phi_k,ij > 0, lambda_k,j if
+/// phi_k,ij < 0). It is the same for all phases and for (i, j) and (j, i),
+/// so the limited pair fluxes stay antisymmetric and add up to 0 over the
 /// phases, and no particle loses more of a phase than it holds (a particle
 /// without phase k still receives it: there k leaves the other particle).
-/// `flux` and `limit` (the lambda_k of [`outflow_limit`]) are per phase;
-/// `out[b]` gets the limits of block b's pairs, in the order of `ff`.
-pub fn pair_limit(ff: &PairLists, flux: PhaseVel, limit: &[&[f32]], out: &mut [Vec<f32>]) {
+/// `pair_flux[k]` and `limit[k]` are the phi_k and lambda_k of
+/// [`outflow_limit`]; `out[b]` gets the limits of block b's pairs.
+pub fn pair_limit(ff: &PairLists, pair_flux: &[&[Vec<f32>]], limit: &[&[f32]], out: &mut [Vec<f32>]) {
     out.par_iter_mut().zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
         o.clear();
         o.resize(blk.len(), 1.0);
@@ -86,16 +91,12 @@ pub fn pair_limit(ff: &PairLists, flux: PhaseVel, limit: &[&[f32]], out: &mut [V
         for q in 0..nq {
             let i = b * BLOCK + q;
             let r = blk.range(q);
-            let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+            let j = &blk.j[..r.end];
             let mut p = r.start;
             while p < r.end {
-                let (x, y, z) = (load(gx, p), load(gy, p), load(gz, p));
                 let mut lam = F::splat(1.0);
-                for (k, l) in limit.iter().enumerate() {
-                    let f = flux.phase(k);
-                    let phi = (gather(f.x, j, p) + F::splat(f.x[i])) * x
-                        + (gather(f.y, j, p) + F::splat(f.y[i])) * y
-                        + (gather(f.z, j, p) + F::splat(f.z[i])) * z;
+                for (phi, l) in pair_flux.iter().zip(limit) {
+                    let phi = load(&phi[b], p);
                     // phi > 0: phase k leaves i; phi < 0: it leaves j; 0: no limit.
                     let from_j = Select::select(phi.simd_lt(F::ZERO), gather(l, j, p), F::splat(1.0));
                     lam = lam.min(Select::select(phi.simd_gt(F::ZERO), F::splat(l[i]), from_j));
@@ -114,29 +115,32 @@ pub fn pair_limit(ff: &PairLists, flux: PhaseVel, limit: &[&[f32]], out: &mut [V
 ///
 /// over fluid neighbours, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt.
 /// F_k = alpha_k (u_mk - j) is the volume-weighted phase flux of
-/// `drift::drift_velocity`, `pair_limit` the Lambda of [`pair_limit`], and
-/// `ff` holds Vbar_ij grad W_ij (after `iisph::scale_by_pair_volume`).
-pub fn transport(ff: &PairLists, alpha_k: &[f32], flux: Vel, pair_limit: &[Vec<f32>], dt: f32, out: &mut [f32]) {
-    out.par_chunks_mut(BLOCK).zip(ff.used().par_iter().zip(pair_limit.par_iter())).enumerate().for_each(
-        |(b, (o, (blk, lim)))| {
+/// `drift::drift_velocity`; `pair_flux` holds the pair fluxes phi_k,ij of
+/// [`outflow_limit`] and `pair_limit` the Lambda_ij of [`pair_limit`].
+pub fn transport(
+    ff: &PairLists,
+    alpha_k: &[f32],
+    pair_flux: &[Vec<f32>],
+    pair_limit: &[Vec<f32>],
+    dt: f32,
+    out: &mut [f32],
+) {
+    out.par_chunks_mut(BLOCK)
+        .zip(ff.used().par_iter().zip(pair_flux.par_iter().zip(pair_limit.par_iter())))
+        .enumerate()
+        .for_each(|(b, (o, (blk, (phi, lim))))| {
             for (q, o) in o.iter_mut().enumerate() {
                 let i = b * BLOCK + q;
-                let (fxi, fyi, fzi) = (F::splat(flux.x[i]), F::splat(flux.y[i]), F::splat(flux.z[i]));
                 let mut acc = F::ZERO;
                 let r = blk.range(q);
-                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
                 let mut p = r.start;
                 while p < r.end {
-                    let phi = (gather(flux.x, j, p) + fxi) * load(gx, p)
-                        + (gather(flux.y, j, p) + fyi) * load(gy, p)
-                        + (gather(flux.z, j, p) + fzi) * load(gz, p);
-                    acc += phi * load(lim, p);
+                    acc += load(phi, p) * load(lim, p);
                     p += LANES;
                 }
                 *o = alpha_k[i] - dt * sum(acc);
             }
-        },
-    );
+        });
 }
 
 /// Pass 12 for one phase k, the reference form: P-Eq. 2 in the symmetric

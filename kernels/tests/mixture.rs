@@ -109,17 +109,20 @@ fn conservative_transport_conserves_and_stays_positive() {
         let fz: Vec<&[f32]> = f.iter().map(|f| f[2].as_slice()).collect();
         let flux = PhaseVel { x: &fx, y: &fy, z: &fz };
         let dt = 0.5;
+        let nb = lat.ff.used().len();
         let mut lambda = vec![vec![0.0f32; n]; np];
+        let mut phi = vec![vec![Vec::new(); nb]; np];
         for (k, l) in lambda.iter_mut().enumerate() {
-            outflow_limit(&lat.ff, &alpha[k], flux.phase(k), dt, l);
+            outflow_limit(&lat.ff, &alpha[k], flux.phase(k), dt, l, &mut phi[k]);
         }
         let limited = lambda.iter().flatten().filter(|&&l| l < 1.0).count();
         let lref: Vec<&[f32]> = lambda.iter().map(|l| l.as_slice()).collect();
-        let mut pl = vec![Vec::new(); lat.ff.used().len()];
-        pair_limit(&lat.ff, flux, &lref, &mut pl);
+        let phiref: Vec<&[Vec<f32>]> = phi.iter().map(|p| p.as_slice()).collect();
+        let mut pl = vec![Vec::new(); nb];
+        pair_limit(&lat.ff, &phiref, &lref, &mut pl);
         let mut next = vec![vec![0.0f32; n]; np];
         for (k, out) in next.iter_mut().enumerate() {
-            transport(&lat.ff, &alpha[k], flux.phase(k), &pl, dt, out);
+            transport(&lat.ff, &alpha[k], &phi[k], &pl, dt, out);
         }
         let moved: f64 =
             (0..np).map(|k| (0..n).map(|i| f64::from((next[k][i] - alpha[k][i]).abs())).sum::<f64>()).sum();

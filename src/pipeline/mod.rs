@@ -92,6 +92,9 @@ struct Workspace {
     /// Per block of fluid-fluid pairs: the pair limit of the conservative
     /// volume-fraction transport (kept for its capacity).
     pair_limit: Vec<Vec<f32>>,
+    /// Per phase, per block of fluid-fluid pairs: the pair fluxes of the
+    /// conservative transport (kept for its capacity).
+    pair_flux: Vec<Vec<Vec<f32>>>,
 }
 
 /// A running simulation: state, time, and what it needs to step.

@@ -346,7 +346,7 @@ fn step_passes(
             alpha_f,
             rest_density,
             alpha_next,
-            &mut w.pair_limit,
+            Buffers { pair_limit: &mut w.pair_limit, pair_flux: &mut w.pair_flux },
             tm,
         );
         st.max_drift_speed = ms;
@@ -397,7 +397,7 @@ fn mixture_passes(
     alpha_f: &[f32],
     rest_density: &[f32],
     alpha_next: &mut [f32],
-    pair_limit: &mut Vec<Vec<f32>>,
+    buffers: Buffers,
     tm: &mut super::PassTimes,
 ) -> f32 {
     let n = fluid.len();
@@ -472,21 +472,24 @@ fn mixture_passes(
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let flux = phase_vel(arena, fx, fy, fz, n);
         if p.conservative_transport {
-            let limit = zeros(arena, np * n);
-            for (k, l) in limit.chunks_mut(n).enumerate() {
-                phase_transport::outflow_limit(ff, alpha[k], flux.phase(k), dt, l);
-            }
-            let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
             let nb = ff.used().len();
+            let Buffers { pair_limit, pair_flux } = buffers;
+            pair_flux.resize_with(np, Vec::new);
+            for f in pair_flux.iter_mut() {
+                f.resize_with(nb.max(f.len()), Vec::new);
+            }
             if pair_limit.len() < nb {
                 pair_limit.resize_with(nb, Vec::new);
             }
-            phase_transport::pair_limit(ff, flux, limit, &mut pair_limit[..nb]);
-            if std::env::var("MIX_NOLIM").is_ok() {
-                pair_limit.iter_mut().for_each(|l| l.iter_mut().for_each(|x| *x = 1.0));
+            let limit = zeros(arena, np * n);
+            for (k, (l, phi)) in limit.chunks_mut(n).zip(pair_flux.iter_mut()).enumerate() {
+                phase_transport::outflow_limit(ff, alpha[k], flux.phase(k), dt, l, &mut phi[..nb]);
             }
+            let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
+            let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
+            phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
             for (k, out) in alpha_next.chunks_mut(n).enumerate() {
-                phase_transport::transport(ff, alpha[k], flux.phase(k), &pair_limit[..nb], dt, out);
+                phase_transport::transport(ff, alpha[k], phi[k], &pair_limit[..nb], dt, out);
             }
         } else {
             for (k, out) in alpha_next.chunks_mut(n).enumerate() {
@@ -495,6 +498,12 @@ fn mixture_passes(
         }
     });
     max_drift
+}
+
+/// Pair buffers of the conservative transport, kept across steps.
+struct Buffers<'a> {
+    pair_limit: &'a mut Vec<Vec<f32>>,
+    pair_flux: &'a mut Vec<Vec<Vec<f32>>>,
 }
 
 /// Per-phase views of three flat arrays holding phase k at `[k n, (k + 1) n)`.
