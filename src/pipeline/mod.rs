@@ -128,6 +128,8 @@ impl Simulation {
             + 8 * w.keys.capacity()
             + 16 * w.sort.capacity()
             + 4 * w.perm.capacity()
+            + 4 * w.pair_limit.iter().map(|v| v.capacity()).sum::<usize>()
+            + 4 * w.pair_flux.iter().flatten().map(|v| v.capacity()).sum::<usize>()
             + self.arena.allocated_bytes();
         bytes as f64 / self.fluid.len().max(1) as f64
     }
