@@ -1,7 +1,7 @@
 //! Bad scene files: each is rejected with the key at fault and a reason that
 //! says what was expected; no input makes the parser panic.
 
-use porosph::scene::{Scene, SceneError, Shape};
+use porosph::scene::{DriftMomentum, PhasePressure, PhaseTransport, Scene, SceneError, Shape};
 use std::path::Path;
 
 /// A valid scene that exercises every key.
@@ -17,6 +17,11 @@ cfl_number = 0.3
 min_iterations = 3
 max_iterations = 50
 omega = 0.7
+drift_tau = 2e-5
+drift_sigma = 5e-4
+drift_momentum = "plus"
+phase_transport = "reference"
+phase_pressure = "fraction"
 
 [[phase]]
 name = "water"
@@ -28,6 +33,8 @@ color = [0.1, 0.2, 0.9]
 name = "oil-2"
 density = 800
 viscosity = 0.05
+drift_tau = 0
+drift_sigma = 1e-3
 
 [[fluid]]
 box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }
@@ -106,8 +113,15 @@ fn full_scene_parses_with_its_values() {
     assert_eq!(sim.min_iterations, 3);
     assert_eq!(sim.max_iterations, 50);
     assert_eq!(sim.omega, 0.7);
+    assert_eq!(sim.drift_tau, 2e-5);
+    assert_eq!(sim.drift_sigma, 5e-4);
+    assert_eq!(sim.drift_momentum, DriftMomentum::Plus);
+    assert_eq!(sim.phase_transport, PhaseTransport::Reference);
+    assert_eq!(sim.phase_pressure, PhasePressure::Fraction);
 
     assert_eq!(scene.phases.len(), 2);
+    assert_eq!((scene.phases[0].drift_tau, scene.phases[0].drift_sigma), (2e-5, 5e-4), "phase defaults: [simulation]");
+    assert_eq!((scene.phases[1].drift_tau, scene.phases[1].drift_sigma), (0.0, 1e-3), "per-phase values win");
     assert_eq!(scene.phases[0].name, "water");
     assert_eq!(scene.phases[0].color, [0.1, 0.2, 0.9]);
     assert_eq!(scene.phases[1].name, "oil-2");
@@ -146,6 +160,12 @@ fn minimal_scene_gets_the_defaults() {
     assert_eq!(sim.min_iterations, 2);
     assert_eq!(sim.max_iterations, 100);
     assert_eq!(sim.omega, 0.5);
+    assert_eq!(sim.drift_tau, 3e-6, "P Table 2");
+    assert_eq!(sim.drift_sigma, 1e-3, "P Table 2");
+    assert_eq!(sim.drift_momentum, DriftMomentum::Physical);
+    assert_eq!(sim.phase_transport, PhaseTransport::Conservative);
+    assert_eq!(sim.phase_pressure, PhasePressure::Shared);
+    assert_eq!((scene.phases[0].drift_tau, scene.phases[0].drift_sigma), (3e-6, 1e-3));
     let c = scene.phases[0].color;
     assert!(c.iter().all(|x| (0.0..=1.0).contains(x)));
     assert!(!scene.walls[0].open_top);
@@ -313,6 +333,29 @@ fn out_of_range_settings() {
     assert_rejected(&text, "phase[0].viscosity", ">= 0, found -0.01");
     let text = edited("viscosity = 0.01", "viscosity = 0.01\ncolor = [0.5, 1.2, 0.0]");
     assert_rejected(&text, "phase[0].color[1]", "in [0, 1], found 1.2");
+}
+
+#[test]
+fn bad_mixture_settings() {
+    let cases = [
+        ("drift_tau = -1e-6", "simulation.drift_tau", "tau in m^2/(Pa s) (= m^3 s/kg) >= 0, found -0.000001"),
+        ("drift_sigma = \"1e-3\"", "simulation.drift_sigma", "sigma in m^2/s (a number), found the string"),
+        ("drift_sigma = inf", "simulation.drift_sigma", "expected a finite number, found inf"),
+        ("drift_momentum = \"physcal\"", "simulation.drift_momentum", "(did you mean \"physical\"?)"),
+        ("drift_momentum = true", "simulation.drift_momentum", "one of \"physical\", \"plus\", \"off\" (a string)"),
+        ("phase_transport = \"exact\"", "simulation.phase_transport", "one of \"conservative\", \"reference\""),
+        ("phase_pressure = 1", "simulation.phase_pressure", "found the integer 1"),
+    ];
+    for (line, key, fragment) in cases {
+        let text = edited("max_dt = 0.002", &format!("max_dt = 0.002\n{line}"));
+        assert_rejected(&text, key, fragment);
+    }
+    let text = edited("viscosity = 0.01", "viscosity = 0.01\ndrift_tau = -3e-6");
+    assert_rejected(&text, "phase[0].drift_tau", ">= 0, found -0.000003");
+    let text = edited("viscosity = 0.01", "viscosity = 0.01\ndrift_sigma = [1e-3]");
+    assert_rejected(&text, "phase[0].drift_sigma", "found an array of 1 element");
+    let text = edited("viscosity = 0.01", "viscosity = 0.01\ndrift_tua = 1e-6");
+    assert_rejected(&text, "phase[0].drift_tua", "did you mean `drift_tau`?");
 }
 
 #[test]

@@ -12,8 +12,15 @@
 //! wall seconds), mean ms per pass, mean solver iterations, and bytes of
 //! memory per fluid particle; `--json FILE` appends the result as JSON.
 //!
+//! `--phases K` (default 1) fills the column with an even mixture of K
+//! phases (densities 1000, 1100, ... kg/m^3, all 0.01 Pa s, the default
+//! drift weights), so the mixture passes (drift, drift momentum, transport,
+//! correction) run on every particle; their cost is also printed in ns per
+//! particle-step.
+//!
 //! ```sh
 //! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 60 --warmup 10 --threads 2
+//! cargo run --release -p porosph-bench -- --spacing 0.025 --steps 40 --warmup 10 --phases 3
 //! ```
 
 use porosph::pipeline::{Simulation, PASSES};
@@ -28,11 +35,21 @@ struct Args {
     threads: usize,
     max_error: f32,
     dt: f32,
+    phases: usize,
     json: Option<String>,
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { spacing: 0.015625, steps: 60, warmup: 10, threads: 2, max_error: 0.001, dt: 0.001, json: None };
+    let mut a = Args {
+        spacing: 0.015625,
+        steps: 60,
+        warmup: 10,
+        threads: 2,
+        max_error: 0.001,
+        dt: 0.001,
+        phases: 1,
+        json: None,
+    };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
         let mut v = || it.next().ok_or(format!("{k} needs a value"));
@@ -47,10 +64,11 @@ fn parse() -> Result<Args, String> {
             "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
             "--max-error" => a.max_error = v()?.parse().map_err(|e| format!("--max-error: {e}"))?,
             "--dt" => a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?,
+            "--phases" => a.phases = v()?.parse().map_err(|e| format!("--phases: {e}"))?,
             "--json" => a.json = Some(v()?),
             "-h" | "--help" => {
                 return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
-                            [--threads N] [--max-error FRACTION] [--dt S] [--json FILE]"
+                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--json FILE]"
                     .into())
             }
             _ => return Err(format!("unknown argument {k}")),
@@ -59,10 +77,20 @@ fn parse() -> Result<Args, String> {
     if a.steps <= a.warmup {
         return Err("--steps must exceed --warmup".into());
     }
+    if a.phases == 0 {
+        return Err("--phases must be at least 1".into());
+    }
     Ok(a)
 }
 
 fn scene(a: &Args) -> Result<Scene, String> {
+    let mut phases = String::new();
+    let mut fractions = Vec::new();
+    for k in 0..a.phases {
+        let rho = 1000.0 + 100.0 * k as f64;
+        phases.push_str(&format!("[[phase]]\nname = \"p{k}\"\ndensity = {rho:.1}\nviscosity = 0.01\n"));
+        fractions.push(format!("p{k} = {}", 1.0 / a.phases as f64));
+    }
     let text = format!(
         r#"[simulation]
 particle_spacing = {sp}
@@ -71,20 +99,18 @@ max_dt = {dt}
 max_density_error = {err}
 frame_interval = 100.0
 cfl_number = 1.0
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 0.01
+{phases}
 [[fluid]]
 box = {{ min = [-1.95, 0.05, -0.5], max = [-0.95, 1.05, 0.5] }}
-fractions = {{ water = 1.0 }}
+fractions = {{ {fr} }}
 [[wall]]
 box = {{ min = [-2.0, 0.0, -0.75], max = [2.0, 3.0, 0.75] }}
 container = true
 "#,
         sp = a.spacing,
         dt = a.dt,
-        err = a.max_error
+        err = a.max_error,
+        fr = fractions.join(", ")
     );
     Scene::from_toml_str(&text, "<bench dam break>").map_err(|e| e.to_string())
 }
@@ -125,7 +151,14 @@ fn bench(a: &Args) {
     let mut sim = Simulation::new(scene);
     let setup_s = t0.elapsed().as_secs_f64();
     let n = sim.fluid.len();
-    eprintln!("{} fluid + {} wall particles, setup {:.2} s, {} threads", n, sim.walls.len(), setup_s, a.threads);
+    eprintln!(
+        "{} fluid + {} wall particles, {} phase(s), setup {:.2} s, {} threads",
+        n,
+        sim.walls.len(),
+        a.phases,
+        setup_s,
+        a.threads
+    );
     let mut pass_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut step_s = Vec::new();
@@ -163,6 +196,7 @@ fn bench(a: &Args) {
     let pps = n as f64 * m / wall_s;
     let (ff, fb) = sim.pair_counts();
     println!("fluid particles      {n}");
+    println!("phases               {}", a.phases);
     println!(
         "steps measured       {measured} (after {} warm-up), t = {:.3} s, min dt {:.2e} s",
         a.warmup, sim.time, min_dt
@@ -180,13 +214,22 @@ fn bench(a: &Args) {
     for (p, v) in PASSES.iter().zip(pass_ms) {
         println!("  {:<16} {:8.2}", p, v / m);
     }
+    if a.phases > 1 {
+        println!("mixture passes, ns per particle-step:");
+        for p in ["drift", "drift_momentum", "phase_transport", "phase_correction"] {
+            if let Some(k) = PASSES.iter().position(|q| *q == p) {
+                println!("  {:<16} {:8.1}", p, pass_ms[k] / m * 1e6 / n as f64);
+            }
+        }
+    }
     if let Some(path) = &a.json {
         let passes: Vec<String> = PASSES.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
         let line = format!(
-            "{{\"fluid_particles\": {n}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
+            "{{\"fluid_particles\": {n}, \"phases\": {}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \
              \"particle_steps_per_s\": {:.0}, \"mean_iterations\": {:.2}, \"bytes_per_particle\": {:.0}, \
              \"median_s_clean\": {}, \"clean_steps\": {}, \"ms_per_pass\": {{{}}}}}",
+            a.phases,
             a.spacing,
             a.threads,
             a.dt,

@@ -5,9 +5,13 @@
 
 pub mod blocks;
 pub mod cubic_spline;
+pub mod drift;
+pub mod drift_momentum;
 pub mod grid;
 pub mod iisph;
 pub mod integrate;
 pub mod lanes;
 pub mod neighbors;
+pub mod phase_transport;
+pub mod phases;
 pub mod viscosity;

@@ -41,6 +41,19 @@ pub struct Params {
     pub phase_density: Vec<f32>,
     /// Viscosity mu_k of each phase, Pa s.
     pub phase_viscosity: Vec<f32>,
+    /// Drift relaxation weight tau_k of each phase, m^2/(Pa s) (P-Eq. 11).
+    pub phase_drift_tau: Vec<f32>,
+    /// Drift diffusion weight sigma_k of each phase, m^2/s (P-Eq. 11).
+    pub phase_drift_sigma: Vec<f32>,
+    /// Sign of the drift momentum term a^Dm (PHYSICS.md §8.15): -1 the
+    /// physical form, +1 that of [RG] and [AC], 0 left out.
+    pub drift_momentum_sign: f32,
+    /// The conservative volume-fraction transport (default) rather than the
+    /// reference form (`simulation.phase_transport`).
+    pub conservative_transport: bool,
+    /// Phase pressures p_k = alphahat_k p rather than the default shared
+    /// p_k = p (`simulation.phase_pressure`).
+    pub fraction_pressure: bool,
 }
 
 /// What one step did.
@@ -54,6 +67,8 @@ pub struct StepStats {
     pub density_error: f32,
     /// Largest fluid speed after the step, m/s.
     pub max_speed: f32,
+    /// Largest drift speed max_k |u_mk| of the step, m/s (0 for one phase).
+    pub max_drift_speed: f32,
     /// Milliseconds per pass.
     pub times: PassTimes,
 }
@@ -79,6 +94,12 @@ struct Workspace {
     active: Vec<u32>,
     /// 1 for the active walls (reset each step through `active`).
     wall_flag: Vec<u8>,
+    /// Per block of fluid-fluid pairs: the pair limit of the conservative
+    /// volume-fraction transport (kept for its capacity).
+    pair_limit: Vec<Vec<f32>>,
+    /// Per phase, per block of fluid-fluid pairs: the pair fluxes of the
+    /// conservative transport (kept for its capacity).
+    pair_flux: Vec<Vec<Vec<f32>>>,
 }
 
 /// A running simulation: state, time, and what it needs to step.
@@ -112,8 +133,18 @@ impl Simulation {
             + 8 * w.keys.capacity()
             + 16 * w.sort.capacity()
             + 4 * w.perm.capacity()
+            + 4 * w.pair_limit.iter().map(|v| v.capacity()).sum::<usize>()
+            + 4 * w.pair_flux.iter().flatten().map(|v| v.capacity()).sum::<usize>()
             + self.arena.allocated_bytes();
         bytes as f64 / self.fluid.len().max(1) as f64
+    }
+
+    /// Volume of each phase in the fluid, sum_i h^3 alpha_k,i over the fluid
+    /// particles (the particle volume h^3 = V0 / alpha_f, P §6.1), m^3;
+    /// summed in f64 in particle order.
+    pub fn phase_volumes(&self) -> Vec<f64> {
+        let cell = f64::from(self.params.cell_volume());
+        self.fluid.alpha.iter().map(|a| cell * a.iter().map(|&x| f64::from(x)).sum::<f64>()).collect()
     }
 
     /// Number of fluid-fluid and fluid-wall pairs of the last step.

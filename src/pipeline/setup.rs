@@ -2,7 +2,7 @@
 //! structures, and the initial time step.
 
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::scene::{sample_fluid, sample_walls, Scene};
+use crate::scene::{sample_fluid, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
 use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
@@ -26,7 +26,47 @@ impl Params {
             omega: s.omega,
             phase_density: scene.phases.iter().map(|p| p.density).collect(),
             phase_viscosity: scene.phases.iter().map(|p| p.viscosity).collect(),
+            phase_drift_tau: scene.phases.iter().map(|p| p.drift_tau).collect(),
+            phase_drift_sigma: scene.phases.iter().map(|p| p.drift_sigma).collect(),
+            drift_momentum_sign: match s.drift_momentum {
+                DriftMomentum::Physical => -1.0,
+                DriftMomentum::Plus => 1.0,
+                DriftMomentum::Off => 0.0,
+            },
+            conservative_transport: s.phase_transport == PhaseTransport::Conservative,
+            fraction_pressure: s.phase_pressure == PhasePressure::Fraction,
         }
+    }
+
+    /// Number of phases K.
+    pub fn phases(&self) -> usize {
+        self.phase_density.len()
+    }
+
+    /// Whether the mixture passes run: with two or more phases. With one
+    /// phase the drift, drift momentum, transport and correction passes are
+    /// skipped, so a one-phase step is the single-fluid IISPH step.
+    pub fn mixture(&self) -> bool {
+        self.phases() >= 2
+    }
+
+    /// The diffusivity of the drift for the time step rule, the largest
+    /// sigma_k, m^2/s (PHYSICS.md §7).
+    pub fn drift_diffusivity(&self) -> f32 {
+        self.phase_drift_sigma.iter().copied().fold(0.0, f32::max)
+    }
+
+    /// A bound on the drift speed before the first step, m/s: the
+    /// buoyancy part of P-Eq. 11 at rest, max_k tau_k (rho_max - rho_min) |g|.
+    pub fn drift_speed_estimate(&self) -> f32 {
+        if !self.mixture() {
+            return 0.0;
+        }
+        let lo = self.phase_density.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = self.phase_density.iter().copied().fold(0.0, f32::max);
+        let g = self.gravity.iter().map(|c| c * c).sum::<f32>().sqrt();
+        let tau = self.phase_drift_tau.iter().copied().fold(0.0, f32::max);
+        tau * (hi - lo) * g
     }
 
     /// The lattice volume h^3, m^3: rest volume of a full fluid particle
@@ -118,7 +158,7 @@ impl Simulation {
             arena: Bump::new(),
         };
         let v0 = sim.max_speed();
-        sim.dt = sim.next_dt(v0);
+        sim.dt = sim.next_dt(v0, sim.params.drift_speed_estimate());
         sim
     }
 }

@@ -1,15 +1,21 @@
-//! The step: passes 0-5, 13 and 14 of PHYSICS.md §6 for one or more fluid
-//! phases sharing each particle, and static walls.
+//! The step: passes 0-5 and 10-14 of PHYSICS.md §6 for one or more fluid
+//! phases sharing each particle (the mixture model of PHYSICS.md §4.1), and
+//! static walls. With one phase the mixture passes (10-12 and the
+//! correction of 14) are skipped, so the step is the single-fluid step.
 
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
 use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
+use porosph_kernels::drift::{self, PhaseVelocityInput};
+use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
-use porosph_kernels::viscosity::{predict_velocity, ViscosityInput};
+use porosph_kernels::phase_transport;
+use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
 use rayon::prelude::*;
 use std::fmt;
 
@@ -51,7 +57,7 @@ impl Simulation {
         if !speed.is_finite() || speed > self.blowup_speed() {
             return Err(self.blowup(speed));
         }
-        self.dt = self.next_dt(speed);
+        self.dt = self.next_dt(speed, stats.max_drift_speed);
         stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
         stats.max_speed = speed;
         stats.dt = dt;
@@ -65,9 +71,12 @@ impl Simulation {
         max_f32(f.len(), |i| (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt())
     }
 
-    /// The time step rule of PHYSICS.md §7 for one or more phases without
-    /// drift: dt = min(max_dt, lambda h / max|u|, 0.125 h^2 rho / mu_max).
-    pub fn next_dt(&self, max_speed: f32) -> f32 {
+    /// The time step rule of PHYSICS.md §7 without porous terms:
+    /// dt = min(max_dt, lambda h / max|u|, 0.125 h^2 rho_k / mu_k), and with
+    /// two or more phases also lambda h / max_k|u_mk| (`max_drift`, the
+    /// drift speed of the last step; PHYSICS.md writes 0.4 = lambda's
+    /// default) and 0.1 h^2 / max_k sigma_k.
+    pub fn next_dt(&self, max_speed: f32, max_drift: f32) -> f32 {
         let p = &self.params;
         let mut dt = p.max_dt;
         if max_speed > 0.0 {
@@ -76,6 +85,15 @@ impl Simulation {
         for (&rho, &mu) in p.phase_density.iter().zip(&p.phase_viscosity) {
             if mu > 0.0 {
                 dt = dt.min(0.125 * p.h * p.h * rho / mu);
+            }
+        }
+        if p.mixture() {
+            if max_drift > 0.0 {
+                dt = dt.min(p.cfl * p.h / max_drift);
+            }
+            let sigma = p.drift_diffusivity();
+            if sigma > 0.0 {
+                dt = dt.min(0.1 * p.h * p.h / sigma);
             }
         }
         dt
@@ -224,10 +242,18 @@ fn step_passes(
         });
     });
 
-    // Pass 3: viscosity (P-Eq. 23) and u* = u + dt (g + a^visc).
+    // Pass 3: viscosity (P-Eq. 23) and u* = u + dt (g + a^visc); with
+    // several phases, with the phase pair weights, keeping a^visc for the
+    // drift velocities.
+    let mixture = p.mixture() && n > 0;
+    let np = fluid.alpha.len();
+    let nm = if mixture { n } else { 0 };
     let usx = zeros(arena, n);
     let usy = zeros(arena, n);
     let usz = zeros(arena, n);
+    let avx = zeros(arena, nm);
+    let avy = zeros(arena, nm);
+    let avz = zeros(arena, nm);
     tm.time(pass::VISCOSITY, || {
         let inp = ViscosityInput {
             ff: &w.ff,
@@ -239,9 +265,17 @@ fn step_passes(
             gravity: p.gravity,
             dt,
         };
-        predict_velocity(&inp, usx, usy, usz);
+        if mixture {
+            let alpha = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
+            let u_star = VelMut { x: &mut *usx, y: &mut *usy, z: &mut *usz };
+            let a_visc = VelMut { x: &mut *avx, y: &mut *avy, z: &mut *avz };
+            predict_velocity_mixture(&inp, alpha, u_star, a_visc);
+        } else {
+            predict_velocity(&inp, usx, usy, usz);
+        }
     });
     let u_star = Vel { x: usx, y: usy, z: usz };
+    let a_visc = Vel { x: avx, y: avy, z: avz };
 
     // Pass 4c: pair volumes, sources (P-Eqs. 26, 29) and diagonals.
     let src = zeros(arena, n);
@@ -297,6 +331,28 @@ fn step_passes(
         iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
     });
 
+    // Passes 10-12: drift velocities, drift momentum, volume-fraction
+    // transport (several phases only; the pair lists now hold
+    // Vbar_ij grad W_ij). apx.. then hold a^p + a^Dm.
+    let alpha_next = zeros(arena, np * nm);
+    if mixture {
+        let ms = mixture_passes(
+            p,
+            fluid,
+            &w.ff,
+            arena,
+            dt,
+            a_visc,
+            [&mut *apx, &mut *apy, &mut *apz],
+            alpha_f,
+            rest_density,
+            alpha_next,
+            Buffers { pair_limit: &mut w.pair_limit, pair_flux: &mut w.pair_flux },
+            tm,
+        );
+        st.max_drift_speed = ms;
+    }
+
     // Pass 13: symplectic Euler.
     tm.time(pass::INTEGRATE, || {
         let s = State {
@@ -309,5 +365,153 @@ fn step_passes(
         };
         integrate(s, u_star, Vel { x: apx, y: apy, z: apz }, dt);
     });
+
+    // Pass 14: correction of the volume fractions (several phases only).
+    if mixture {
+        tm.time(pass::PHASE_CORRECTION, || {
+            let next = arena.alloc_slice_fill_iter(alpha_next.chunks(n));
+            let total = zeros(arena, n);
+            let largest = arena.alloc_slice_fill_copy(n, 0u32);
+            phase_transport::correction_sums(next, total, largest);
+            for (k, a) in fluid.alpha.iter_mut().enumerate() {
+                phase_transport::correct(next[k], total, largest, k, a);
+            }
+        });
+    }
     st
+}
+
+/// Passes 10-12 (PHYSICS.md §6) of a step with two or more phases: drift
+/// velocities (P-Eq. 11 without its porous term), the drift momentum term
+/// (added to `ap`, which holds a^p on entry), and the transport of the
+/// fractions into `alpha_next` (phase k at `[k n, (k + 1) n)`). Returns
+/// the largest drift speed, m/s.
+#[allow(clippy::too_many_arguments)]
+fn mixture_passes(
+    p: &Params,
+    fluid: &FluidStore,
+    ff: &porosph_kernels::neighbors::PairLists,
+    arena: &Bump,
+    dt: f32,
+    a_visc: Vel,
+    ap: [&mut [f32]; 3],
+    alpha_f: &[f32],
+    rest_density: &[f32],
+    alpha_next: &mut [f32],
+    buffers: Buffers,
+    tm: &mut super::PassTimes,
+) -> f32 {
+    let n = fluid.len();
+    let np = fluid.alpha.len();
+    let [apx, apy, apz] = ap;
+    let alpha: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
+    // Pass 10: v_k and w_k per phase, then s and m, then u_mk (over v_k)
+    // and the phase fluxes F_k (over w_k).
+    let ux = zeros(arena, np * n);
+    let uy = zeros(arena, np * n);
+    let uz = zeros(arena, np * n);
+    let fx = zeros(arena, np * n);
+    let fy = zeros(arena, np * n);
+    let fz = zeros(arena, np * n);
+    let max_drift = tm.time(pass::DRIFT, || {
+        let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
+        if p.fraction_pressure {
+            drift::pressure_per_fraction(&fluid.pressure, alpha_f, pf);
+        }
+        let p_per_fraction = if p.fraction_pressure { Some(&*pf) } else { None };
+        let inp = PhaseVelocityInput { ff, alpha_f, p_per_fraction, a_visc, a_p: Vel { x: apx, y: apy, z: apz } };
+        let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+        let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+        for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
+            let phase = PhaseConstants {
+                density: p.phase_density[k],
+                tau: p.phase_drift_tau[k],
+                sigma: p.phase_drift_sigma[k],
+            };
+            drift::phase_velocity(&inp, alpha[k], phase, VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+        }
+        let (sx, sy, sz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        let (mx, my, mz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        {
+            let w = phase_vel(arena, fx, fy, fz, n);
+            let s = VelMut { x: &mut *sx, y: &mut *sy, z: &mut *sz };
+            let m = VelMut { x: &mut *mx, y: &mut *my, z: &mut *mz };
+            drift::mixture_velocity(alpha, alpha_f, &p.phase_density, w, s, m);
+        }
+        let (s, m) = (Vel { x: sx, y: sy, z: sz }, Vel { x: mx, y: my, z: mz });
+        let m = if p.conservative_transport { Some(m) } else { None };
+        let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+        let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+        for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
+            drift::drift_velocity(alpha[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
+        }
+        drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n)
+    });
+    let u_drift = phase_vel(arena, ux, uy, uz, n);
+
+    // Pass 11: a^Dm (PHYSICS.md §4.1, sign per §8.15), added to a^p.
+    if p.drift_momentum_sign != 0.0 {
+        tm.time(pass::DRIFT_MOMENTUM, || {
+            let (dx, dy, dz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+            let inp = DriftMomentumInput {
+                ff,
+                alpha,
+                u_drift,
+                density: &p.phase_density,
+                rest_density,
+                sign: p.drift_momentum_sign,
+            };
+            drift_momentum(&inp, VelMut { x: &mut *dx, y: &mut *dy, z: &mut *dz });
+            for (a, d) in [(&mut *apx, &*dx), (&mut *apy, &*dy), (&mut *apz, &*dz)] {
+                a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
+            }
+        });
+    }
+
+    // Pass 12: transport of every phase at the old positions (P-Eq. 2).
+    tm.time(pass::PHASE_TRANSPORT, || {
+        let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
+        let flux = phase_vel(arena, fx, fy, fz, n);
+        if p.conservative_transport {
+            let nb = ff.used().len();
+            let Buffers { pair_limit, pair_flux } = buffers;
+            pair_flux.resize_with(np, Vec::new);
+            for f in pair_flux.iter_mut() {
+                f.resize_with(nb.max(f.len()), Vec::new);
+            }
+            if pair_limit.len() < nb {
+                pair_limit.resize_with(nb, Vec::new);
+            }
+            let limit = zeros(arena, np * n);
+            for (k, (l, phi)) in limit.chunks_mut(n).zip(pair_flux.iter_mut()).enumerate() {
+                phase_transport::outflow_limit(ff, alpha[k], flux.phase(k), dt, l, &mut phi[..nb]);
+            }
+            let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
+            let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
+            phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
+            for (k, out) in alpha_next.chunks_mut(n).enumerate() {
+                phase_transport::transport(ff, alpha[k], phi[k], &pair_limit[..nb], dt, out);
+            }
+        } else {
+            for (k, out) in alpha_next.chunks_mut(n).enumerate() {
+                phase_transport::transport_reference(ff, u, alpha[k], flux.phase(k), dt, out);
+            }
+        }
+    });
+    max_drift
+}
+
+/// Pair buffers of the conservative transport, kept across steps.
+struct Buffers<'a> {
+    pair_limit: &'a mut Vec<Vec<f32>>,
+    pair_flux: &'a mut Vec<Vec<Vec<f32>>>,
+}
+
+/// Per-phase views of three flat arrays holding phase k at `[k n, (k + 1) n)`.
+fn phase_vel<'a>(arena: &'a Bump, x: &'a [f32], y: &'a [f32], z: &'a [f32], n: usize) -> PhaseVel<'a> {
+    PhaseVel {
+        x: arena.alloc_slice_fill_iter(x.chunks(n.max(1))),
+        y: arena.alloc_slice_fill_iter(y.chunks(n.max(1))),
+        z: arena.alloc_slice_fill_iter(z.chunks(n.max(1))),
+    }
 }

@@ -12,6 +12,7 @@ pub use frame::kind;
 use crate::io::checkpoint::RunInfo;
 use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
+use crate::scene::Phase;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -130,12 +131,16 @@ impl From<IoError> for RunError {
     }
 }
 
-/// Header of `stats.csv`.
-pub fn stats_columns() -> Vec<String> {
-    let mut c: Vec<String> = ["step", "time", "dt", "iterations", "density_error", "max_speed", "fluid_particles"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+/// Header of `stats.csv` for a scene with `phases`: then `volume_<phase>`
+/// (m^3, [`Simulation::phase_volumes`]) per phase in scene order, and
+/// `ms_<pass>` per pass.
+pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
+    let mut c: Vec<String> =
+        ["step", "time", "dt", "iterations", "density_error", "max_speed", "max_drift_speed", "fluid_particles"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+    c.extend(phases.iter().map(|p| format!("volume_{}", p.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c
@@ -154,9 +159,14 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     let stats_path = opts.out.join("stats.csv");
     let series_path = frames_dir.join("frames.vtkhdf.series");
     let (mut stats, mut series, mut frames, mut next_frame) = match opts.resume {
-        None => (StatsWriter::create(&stats_path, &stats_columns())?, SeriesWriter::new(&series_path), 0u64, 0.0f64),
+        None => (
+            StatsWriter::create(&stats_path, &stats_columns(&sim.scene.phases))?,
+            SeriesWriter::new(&series_path),
+            0u64,
+            0.0f64,
+        ),
         Some(c) => (
-            StatsWriter::append(&stats_path, &stats_columns(), sim.step)?,
+            StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases), sim.step)?,
             SeriesWriter::open_existing(&series_path)?,
             c.frames,
             c.next_frame,
@@ -242,8 +252,10 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.iterations as f64,
             st.density_error as f64,
             st.max_speed as f64,
+            st.max_drift_speed as f64,
             n,
         ];
+        row.extend(sim.phase_volumes());
         row.extend(st.times.ms);
         row.push(ms_step);
         stats.row(&row)?;

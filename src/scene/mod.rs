@@ -54,6 +54,64 @@ pub struct Simulation {
     pub max_iterations: u32,
     /// Relaxation factor omega of the Jacobi update (default 0.5).
     pub omega: f32,
+    /// Drift relaxation weight tau of P-Eq. 11, in m^2/(Pa s) = m^3 s/kg
+    /// (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a unit slip), the
+    /// default of every phase (default 3e-6, P Table 2). Not divided by the
+    /// viscosity (PHYSICS.md §4.1: [AC] does; here a Stokes-like
+    /// tau ~ d^2/(18 mu) is folded into the value).
+    pub drift_tau: f32,
+    /// Drift diffusion weight sigma of P-Eq. 11, in m^2/s, the default of
+    /// every phase (default 1e-3, P Table 2).
+    pub drift_sigma: f32,
+    /// The drift momentum term a^Dm of the mixture (PHYSICS.md §4.1, §8.15).
+    pub drift_momentum: DriftMomentum,
+    /// The form of the volume-fraction transport (PHYSICS.md §4.1).
+    pub phase_transport: PhaseTransport,
+    /// The phase pressures p_k of the drift velocities (P-Eq. 11).
+    pub phase_pressure: PhasePressure,
+}
+
+/// `phase_pressure`: the phase pressure p_k in P-Eq. 11
+/// (`porosph_kernels::drift` explains the difference).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhasePressure {
+    /// `"shared"` (default): p_k = p for every phase; the two pressure
+    /// terms of P-Eq. 11 cancel and the drift is the buoyancy slip
+    /// tau (rho_k - sum c rho) a of Manninen's mixture model.
+    Shared,
+    /// `"fraction"`: p_k = alphahat_k p, as PHYSICS.md §4.1 writes it after
+    /// [AC]. It depends on the pressure's zero, adds a diffusion of about
+    /// 2 tau p (limiting dt), and stops gravity separation at a mixed
+    /// composition.
+    Fraction,
+}
+
+/// `phase_transport`: the form of the volume-fraction transport (P-Eq. 2);
+/// `porosph_kernels::phase_transport` explains both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhaseTransport {
+    /// `"conservative"` (default): volume-weighted phase fluxes with a
+    /// positivity limiter and no alpha div u_m term; conserves every
+    /// phase's volume to rounding.
+    Conservative,
+    /// `"reference"`: the symmetric form exactly as [RG], [AC] and
+    /// PHYSICS.md §4.1 write it; each phase's volume drifts through the
+    /// correction.
+    Reference,
+}
+
+/// `drift_momentum`: how the drift momentum term
+/// a^Dm = -(1/rho) div sum_k alpha_k rho_k u_mk (x) u_mk enters the mixture
+/// momentum (PHYSICS.md §4.1; the sign discussion is §8.15).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriftMomentum {
+    /// `"physical"` (default): with the minus sign of the mixture momentum
+    /// equation (Manninen et al. 1996).
+    Physical,
+    /// `"plus"`: with the plus sign of the reference codes [RG] and [AC].
+    Plus,
+    /// `"off"`: left out.
+    Off,
 }
 
 /// `[[phase]]`: one fluid phase.
@@ -66,6 +124,12 @@ pub struct Phase {
     pub viscosity: f32,
     /// Display colour, linear RGB in [0, 1] (default: from a fixed palette by index).
     pub color: [f32; 3],
+    /// Drift relaxation weight tau_k of this phase, m^2/(Pa s) (the key
+    /// `drift_tau` of the phase; default `simulation.drift_tau`).
+    pub drift_tau: f32,
+    /// Drift diffusion weight sigma_k of this phase, m^2/s (the key
+    /// `drift_sigma` of the phase; default `simulation.drift_sigma`).
+    pub drift_sigma: f32,
 }
 
 /// A region of space. Lattice points inside it become particles.

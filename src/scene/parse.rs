@@ -6,7 +6,9 @@
 //! found. Nothing here panics on user input: every value is checked for type,
 //! finiteness (TOML allows `nan` and `inf`) and range before it is used.
 
-use super::{FluidBlock, Phase, Scene, SceneError, Shape, Simulation, Wall};
+use super::{
+    DriftMomentum, FluidBlock, Phase, PhasePressure, PhaseTransport, Scene, SceneError, Shape, Simulation, Wall,
+};
 use std::path::Path;
 use toml::{Table, Value};
 
@@ -47,8 +49,28 @@ const SIMULATION_KEYS: &[&str] = &[
     "min_iterations",
     "max_iterations",
     "omega",
+    "drift_tau",
+    "drift_sigma",
+    "drift_momentum",
+    "phase_transport",
+    "phase_pressure",
 ];
-const PHASE_KEYS: &[&str] = &["name", "density", "viscosity", "color"];
+const PHASE_KEYS: &[&str] = &["name", "density", "viscosity", "color", "drift_tau", "drift_sigma"];
+
+/// Default drift weights (P Table 2; tau in m^2/(Pa s), PHYSICS.md §7).
+const DEFAULT_DRIFT_TAU: f32 = 3e-6;
+const DEFAULT_DRIFT_SIGMA: f32 = 1e-3;
+const TAU_WHAT: &str = "the drift relaxation weight tau in m^2/(Pa s) (= m^3 s/kg)";
+const SIGMA_WHAT: &str = "the drift diffusion weight sigma in m^2/s";
+/// The values of `drift_momentum`.
+const DRIFT_MOMENTUM_VALUES: &[(&str, DriftMomentum)] =
+    &[("physical", DriftMomentum::Physical), ("plus", DriftMomentum::Plus), ("off", DriftMomentum::Off)];
+/// The values of `phase_transport`.
+const PHASE_TRANSPORT_VALUES: &[(&str, PhaseTransport)] =
+    &[("conservative", PhaseTransport::Conservative), ("reference", PhaseTransport::Reference)];
+/// The values of `phase_pressure`.
+const PHASE_PRESSURE_VALUES: &[(&str, PhasePressure)] =
+    &[("shared", PhasePressure::Shared), ("fraction", PhasePressure::Fraction)];
 const SHAPE_KEYS: &[&str] = &["box", "sphere", "cylinder"];
 const FLUID_KEYS: &[&str] = &["box", "sphere", "cylinder", "fractions", "velocity"];
 const WALL_KEYS: &[&str] = &["box", "sphere", "cylinder", "container", "open_top"];
@@ -98,7 +120,7 @@ impl Scene {
         let mut phases: Vec<Phase> = Vec::with_capacity(phase_tables.len());
         for (i, tbl) in phase_tables.iter().enumerate() {
             let path = format!("phase[{i}]");
-            let phase = cx.phase(&path, tbl, i)?;
+            let phase = cx.phase(&path, tbl, i, &simulation)?;
             if let Some(j) = phases.iter().position(|p| p.name == phase.name) {
                 return Err(cx.err(
                     &join(&path, "name"),
@@ -406,6 +428,28 @@ impl Cx<'_> {
             Some(v) => self.f32_in(&key("omega"), v, "the Jacobi relaxation factor omega", Range::OpenUnit)?,
             None => 0.5,
         };
+        let drift_tau = match t.get("drift_tau") {
+            Some(v) => self.f32_in(&key("drift_tau"), v, TAU_WHAT, Range::NonNegative)?,
+            None => DEFAULT_DRIFT_TAU,
+        };
+        let drift_sigma = match t.get("drift_sigma") {
+            Some(v) => self.f32_in(&key("drift_sigma"), v, SIGMA_WHAT, Range::NonNegative)?,
+            None => DEFAULT_DRIFT_SIGMA,
+        };
+        let drift_momentum = match t.get("drift_momentum") {
+            Some(v) => self.choice(&key("drift_momentum"), v, "the drift momentum term", DRIFT_MOMENTUM_VALUES)?,
+            None => DriftMomentum::Physical,
+        };
+        let phase_transport = match t.get("phase_transport") {
+            Some(v) => {
+                self.choice(&key("phase_transport"), v, "the volume-fraction transport", PHASE_TRANSPORT_VALUES)?
+            }
+            None => PhaseTransport::Conservative,
+        };
+        let phase_pressure = match t.get("phase_pressure") {
+            Some(v) => self.choice(&key("phase_pressure"), v, "the phase pressure", PHASE_PRESSURE_VALUES)?,
+            None => PhasePressure::Shared,
+        };
 
         Ok(Simulation {
             particle_spacing,
@@ -418,11 +462,33 @@ impl Cx<'_> {
             min_iterations,
             max_iterations,
             omega,
+            drift_tau,
+            drift_sigma,
+            drift_momentum,
+            phase_transport,
+            phase_pressure,
         })
     }
 
-    /// `[[phase]]` number `index`.
-    fn phase(&self, path: &str, t: &Table, index: usize) -> Result<Phase, SceneError> {
+    /// One of the strings of `values`.
+    fn choice<T: Copy>(&self, key: &str, v: &Value, what: &str, values: &[(&str, T)]) -> Result<T, SceneError> {
+        let names: Vec<String> = values.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+        let expected = format!("{what} as one of {}", names.join(", "));
+        match v {
+            Value::String(s) => values.iter().find(|(n, _)| n == s).map(|&(_, t)| t).ok_or_else(|| {
+                let mut reason = format!("expected {expected}, found the string {s:?}");
+                let plain: Vec<&str> = values.iter().map(|(n, _)| *n).collect();
+                if let Some(near) = closest(s, &plain) {
+                    reason.push_str(&format!(" (did you mean \"{near}\"?)"));
+                }
+                self.err(key, reason)
+            }),
+            other => Err(self.err(key, format!("expected {expected} (a string), found {}", describe(other)))),
+        }
+    }
+
+    /// `[[phase]]` number `index`; drift weights default to those of `sim`.
+    fn phase(&self, path: &str, t: &Table, index: usize, sim: &Simulation) -> Result<Phase, SceneError> {
         self.allow_keys(path, t, PHASE_KEYS)?;
         let key = |k: &str| join(path, k);
 
@@ -460,7 +526,15 @@ impl Cx<'_> {
             Some(v) => self.vec3(&key("color"), v, "a linear RGB colour", Range::ClosedUnit)?,
             None => PALETTE[index % PALETTE.len()],
         };
-        Ok(Phase { name, density, viscosity, color })
+        let drift_tau = match t.get("drift_tau") {
+            Some(v) => self.f32_in(&key("drift_tau"), v, TAU_WHAT, Range::NonNegative)?,
+            None => sim.drift_tau,
+        };
+        let drift_sigma = match t.get("drift_sigma") {
+            Some(v) => self.f32_in(&key("drift_sigma"), v, SIGMA_WHAT, Range::NonNegative)?,
+            None => sim.drift_sigma,
+        };
+        Ok(Phase { name, density, viscosity, color, drift_tau, drift_sigma })
     }
 
     /// `[[fluid]]`.

@@ -1,0 +1,273 @@
+//! Pass 10 (PHYSICS.md §6): drift velocities u_mk of the mixture model
+//! (Ren et al. 2014; PHYSICS.md §4.1), P-Eq. 11 without its last (porous)
+//! term, and the phase fluxes that the transport (pass 12) moves.
+//!
+//! P-Eq. 11 reads, with mass fractions c_k = alpha_k rho_k / sum_k' alpha_k' rho_k',
+//!
+//! u_mk = tau (rho_k - sum_k' c_k' rho_k') a - tau (grad p_k - sum_k' c_k' grad p_k')
+//!        - sigma (grad alpha_k / alpha_k - sum_k' c_k' grad alpha_k' / alpha_k').
+//!
+//! It is computed as u_mk = v_k - s, s = sum_k' c_k' v_k', from the phase
+//! velocity v_k = tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k / alpha_k:
+//! P-Eq. 11 term by term when all phases share tau and sigma, and with
+//! sum_k c_k u_mk = 0 kept when a scene gives phases their own tau_k, sigma_k.
+//! s is summed from w_k = alpha_k v_k (c_k v_k = rho_k w_k / sum alpha rho),
+//! which has no division by alpha_k, so the mixture sums stay exact for a
+//! phase that is absent from the particle but not from its neighbours.
+//!
+//! - a = g - Du_m/Dt, implemented as a = -(a^visc + a^p), minus the
+//!   particle's non-gravity accelerations of this step (PHYSICS.md §4.1).
+//!   tau is not divided by the viscosity ([AC] does; a Stokes-like
+//!   d^2 / (18 mu) belongs in the scene's value), so tau is in
+//!   m^2/(Pa s) = m^3 s/kg (PHYSICS.md §7).
+//! - Gradients in difference form over fluid neighbours,
+//!   grad A_i = sum_j Vbar_ij (A_j - A_i) grad W_ij, with the harmonic pair
+//!   volume Vbar_ij of the pressure solve (the pair lists hold
+//!   Vbar_ij grad W_ij after `iisph::scale_by_pair_volume`); in the bulk
+//!   Vbar_ij = V_j, the volume PHYSICS.md §4.1 writes.
+//! - Guards (PHYSICS.md §4.1): the term sigma grad alpha_k / alpha_k of
+//!   u_mk itself is dropped where alphahat_k < 0.01; everything is 0 where
+//!   alpha_f < 0.01.
+//! - Phase pressures p_k [inferred]. The scene's `phase_pressure` picks:
+//!   - `"shared"` (default): p_k = p for every phase, so the two pressure
+//!     terms cancel and u_mk = tau (rho_k - sum c rho) a - sigma (...), the
+//!     buoyancy slip of Manninen's mixture model (where grad p = rho_m a is
+//!     what makes the buoyancy).
+//!   - `"fraction"`: p_k = alphahat_k p with alphahat_k = alpha_k / alpha_f
+//!     and p the solved IISPH pressure, as PHYSICS.md §4.1 writes it after
+//!     [AC]. grad p_k = alphahat_k grad p + p grad alphahat_k; the second
+//!     part depends on where p is zero (not a physical property) and acts
+//!     as a diffusion of fractions with coefficient about 2 tau p alpha c
+//!     (up to 0.006 m^2/s at 0.4 m depth of water with tau = 3e-6, six
+//!     times the paper's sigma), which is unstable for
+//!     dt > 0.1 h^2 / (2 tau p alpha c)
+//!     and picks up the IISPH pressure's step-to-step noise. In a column at
+//!     rest (grad p = rho_m g, a = g) the first part gives a two-phase drift
+//!     u_mh - u_ml = tau g [(rho_h - rho_l) - rho_m (alpha_h - alpha_l)],
+//!     which stops settling where the bracket is 0: at alpha_h = 0.69 for
+//!     rho_h / rho_l = 1.5, 0.59 for 1.2. A suspension never separates
+//!     completely (`tests/mixture.rs` checks both forms).
+//!
+//! Three gathers, each writing its own arrays (so the GPU twin,
+//! `shaders/drift.wgsl`, can use the same function names):
+//! 1. [`phase_velocity`], once per phase: v_k and w_k.
+//! 2. [`mixture_velocity`]: s = sum_k c_k v_k and the volume-weighted mean
+//!    phase velocity m = sum_k alphahat_k v_k.
+//! 3. [`drift_velocity`], once per phase: u_mk = v_k - s (over v_k), and
+//!    the phase flux F_k = w_k - alpha_k m = alpha_k (u_mk - j) for the
+//!    transport (over w_k), j = sum_k alphahat_k u_mk.
+//!
+//! Why the (default, conservative) transport moves F_k = alpha_k (u_mk - j)
+//! rather than alpha_k u_mk [inferred]: u_mk is the phase velocity relative
+//! to the mass-averaged velocity, and sum_k alpha_k u_mk = alpha_f j is in
+//! general not 0 (a heavy phase going down and a light one going up carry
+//! unequal volumes), so those fluxes would create or destroy volume in a
+//! particle whose volume IISPH holds at alpha_f h^3, and the correction
+//! would renormalise it away unevenly: each phase's total volume drifts
+//! (`phase_transport` gives numbers). u_mk - j is the phase velocity
+//! relative to the volume-averaged velocity; these fluxes add up to 0 in
+//! every particle. For incompressible phases this is the same continuum
+//! model with the particles moving at the volume-averaged velocity, the
+//! one that is divergence-free, as IISPH makes the particle velocity. The
+//! top of a settling two-phase suspension falls at
+//! alpha_l |u_mh - u_ml| = (rho_m / rho_l) |u_mh| either way. The sigma
+//! part of F_k is -sigma grad alpha_k + alpha_k sum_k' sigma_k' grad alpha_k'
+//! (Fick's law for equal sigma), also between two pure particles, where
+//! alpha_k u_mk would be 0.
+
+use crate::blocks::BLOCK;
+use crate::iisph::Vel;
+use crate::lanes::{gather, load, sum, F, LANES};
+use crate::neighbors::{PairBlock, PairLists};
+use crate::phases::{PhaseConstants, PhaseVel, VelMut, MIN_ALPHA_F, MIN_PHASE_FRACTION};
+use rayon::prelude::*;
+
+/// p / alpha_f per particle (0 where alpha_f < 0.01), so that the phase
+/// pressure is p_k = alpha_k (p / alpha_f) = alphahat_k p (PHYSICS.md §4.1).
+pub fn pressure_per_fraction(p: &[f32], alpha_f: &[f32], out: &mut [f32]) {
+    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+        for (q, v) in o.iter_mut().enumerate() {
+            let i = b * BLOCK + q;
+            *v = if alpha_f[i] >= MIN_ALPHA_F { p[i] / alpha_f[i] } else { 0.0 };
+        }
+    });
+}
+
+/// Inputs of [`phase_velocity`].
+pub struct PhaseVelocityInput<'a> {
+    /// Fluid-fluid pairs holding Vbar_ij grad W_ij (after
+    /// `iisph::scale_by_pair_volume`).
+    pub ff: &'a PairLists,
+    /// Outer fraction alpha_f = sum_k alpha_k.
+    pub alpha_f: &'a [f32],
+    /// p / alpha_f from [`pressure_per_fraction`], Pa, for the phase
+    /// pressures p_k = alphahat_k p; `None` for a pressure shared by all
+    /// phases, p_k = p, whose terms in P-Eq. 11 cancel (module doc).
+    pub p_per_fraction: Option<&'a [f32]>,
+    /// Viscous acceleration a^visc of this step, m/s^2.
+    pub a_visc: Vel<'a>,
+    /// Pressure acceleration a^p of this step, m/s^2.
+    pub a_p: Vel<'a>,
+}
+
+/// Step 1 of P-Eq. 11 for phase k (module doc), with a = -(a^visc + a^p)
+/// and p_k = alphahat_k p, both in m/s and 0 where alpha_f < 0.01:
+/// - `v`: v_k = tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k / alpha_k,
+///   the diffusion part dropped where alphahat_k < 0.01;
+/// - `w`: w_k = alpha_k tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k,
+///   which is alpha_k v_k without that guard (finite as alpha_k -> 0).
+///
+/// `alpha_k` is the fraction of phase k.
+pub fn phase_velocity(inp: &PhaseVelocityInput, alpha_k: &[f32], phase: PhaseConstants, v: VelMut, w: VelMut) {
+    let (tau, sigma, rho) = (phase.tau, phase.sigma, phase.density);
+    v.x.par_chunks_mut(BLOCK)
+        .zip(v.y.par_chunks_mut(BLOCK))
+        .zip(v.z.par_chunks_mut(BLOCK))
+        .zip(w.x.par_chunks_mut(BLOCK).zip(w.y.par_chunks_mut(BLOCK)).zip(w.z.par_chunks_mut(BLOCK)))
+        .zip(inp.ff.used().par_iter())
+        .enumerate()
+        .for_each(|(b, ((((vx, vy), vz), ((wx, wy), wz)), blk))| {
+            for q in 0..vx.len() {
+                let i = b * BLOCK + q;
+                let af = inp.alpha_f[i];
+                if af < MIN_ALPHA_F {
+                    (vx[q], vy[q], vz[q], wx[q], wy[q], wz[q]) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    continue;
+                }
+                let ai = alpha_k[i];
+                let r = blk.range(q);
+                let (ga, gp) = match inp.p_per_fraction {
+                    Some(pf) => gradients::<true>(blk, r, alpha_k, pf, ai, ai * pf[i]),
+                    None => gradients::<false>(blk, r, alpha_k, alpha_k, ai, 0.0),
+                };
+                let (av, ap) = (inp.a_visc, inp.a_p);
+                let a = [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i])];
+                let own = ai >= MIN_PHASE_FRACTION * af;
+                let mut out_v = [0.0f32; 3];
+                let mut out_w = [0.0f32; 3];
+                for c in 0..3 {
+                    let t = tau * (rho * a[c] - gp[c]);
+                    out_v[c] = if own { t - sigma * ga[c] / ai } else { t };
+                    out_w[c] = ai * t - sigma * ga[c];
+                }
+                (vx[q], vy[q], vz[q]) = (out_v[0], out_v[1], out_v[2]);
+                (wx[q], wy[q], wz[q]) = (out_w[0], out_w[1], out_w[2]);
+            }
+        });
+}
+
+/// grad alpha_k and (with `PRESSURE`) grad p_k of one particle in the
+/// difference form, over the pairs `r` of `blk`; `pf` is p / alpha_f, `ai`
+/// and `pki` the particle's alpha_k and p_k.
+#[inline(always)]
+fn gradients<const PRESSURE: bool>(
+    blk: &PairBlock,
+    r: std::ops::Range<usize>,
+    alpha_k: &[f32],
+    pf: &[f32],
+    ai: f32,
+    pki: f32,
+) -> ([f32; 3], [f32; 3]) {
+    let (vai, vpi) = (F::splat(ai), F::splat(pki));
+    let (mut gax, mut gay, mut gaz) = (F::ZERO, F::ZERO, F::ZERO);
+    let (mut gpx, mut gpy, mut gpz) = (F::ZERO, F::ZERO, F::ZERO);
+    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    let mut k = r.start;
+    while k < r.end {
+        let aj = gather(alpha_k, j, k);
+        let da = aj - vai;
+        let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
+        gax += da * x;
+        gay += da * y;
+        gaz += da * z;
+        if PRESSURE {
+            let dp = aj * gather(pf, j, k) - vpi;
+            gpx += dp * x;
+            gpy += dp * y;
+            gpz += dp * z;
+        }
+        k += LANES;
+    }
+    ([sum(gax), sum(gay), sum(gaz)], [sum(gpx), sum(gpy), sum(gpz)])
+}
+
+/// Step 2 of P-Eq. 11, in m/s (both 0 where alpha_f < 0.01):
+/// - `s`: the mass-weighted mean phase velocity sum_k c_k v_k, computed as
+///   sum_k rho_k w_k / sum_k alpha_k rho_k (so no term divides by alpha_k;
+///   c_k grad alpha_k / alpha_k = rho_k grad alpha_k / sum alpha rho);
+/// - `m`: the volume-weighted mean phase velocity
+///   sum_k alphahat_k v_k = sum_k w_k / alpha_f.
+///
+/// `alpha[k]`, `density[k]` and `w` are per phase.
+pub fn mixture_velocity(alpha: &[&[f32]], alpha_f: &[f32], density: &[f32], w: PhaseVel, s: VelMut, m: VelMut) {
+    let np = alpha.len();
+    s.x.par_chunks_mut(BLOCK)
+        .zip(s.y.par_chunks_mut(BLOCK))
+        .zip(s.z.par_chunks_mut(BLOCK))
+        .zip(m.x.par_chunks_mut(BLOCK).zip(m.y.par_chunks_mut(BLOCK)).zip(m.z.par_chunks_mut(BLOCK)))
+        .enumerate()
+        .for_each(|(b, (((sx, sy), sz), ((mx, my), mz)))| {
+            for q in 0..sx.len() {
+                let i = b * BLOCK + q;
+                let af = alpha_f[i];
+                let mass: f32 = (0..np).map(|k| alpha[k][i] * density[k]).sum();
+                if af < MIN_ALPHA_F || mass <= 0.0 {
+                    (sx[q], sy[q], sz[q], mx[q], my[q], mz[q]) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    continue;
+                }
+                let (mut ms, mut mv) = ([0.0f32; 3], [0.0f32; 3]);
+                for (k, rho) in density.iter().enumerate() {
+                    let wk = [w.x[k][i], w.y[k][i], w.z[k][i]];
+                    for c in 0..3 {
+                        ms[c] += rho * wk[c];
+                        mv[c] += wk[c];
+                    }
+                }
+                (sx[q], sy[q], sz[q]) = (ms[0] / mass, ms[1] / mass, ms[2] / mass);
+                (mx[q], my[q], mz[q]) = (mv[0] / af, mv[1] / af, mv[2] / af);
+            }
+        });
+}
+
+/// Step 3 of P-Eq. 11 for phase k, in m/s: the drift velocity
+/// u_mk = v_k - s, written over `v_k`, and the phase flux of the
+/// transport, written over `w_k`: with `m` given (the conservative
+/// transport), F_k = w_k - alpha_k m = alpha_k (v_k - sum_k' alphahat_k' v_k'),
+/// alpha_k times the phase velocity relative to the volume-averaged one
+/// (module doc); without, F_k = alpha_k u_mk (the reference form).
+pub fn drift_velocity(alpha_k: &[f32], s: Vel, m: Option<Vel>, v_k: VelMut, w_k: VelMut) {
+    v_k.x
+        .par_chunks_mut(BLOCK)
+        .zip(v_k.y.par_chunks_mut(BLOCK))
+        .zip(v_k.z.par_chunks_mut(BLOCK))
+        .zip(w_k.x.par_chunks_mut(BLOCK).zip(w_k.y.par_chunks_mut(BLOCK)).zip(w_k.z.par_chunks_mut(BLOCK)))
+        .enumerate()
+        .for_each(|(b, (((ux, uy), uz), ((fx, fy), fz)))| {
+            for q in 0..ux.len() {
+                let i = b * BLOCK + q;
+                let a = alpha_k[i];
+                ux[q] -= s.x[i];
+                uy[q] -= s.y[i];
+                uz[q] -= s.z[i];
+                (fx[q], fy[q], fz[q]) = match m {
+                    Some(m) => (fx[q] - a * m.x[i], fy[q] - a * m.y[i], fz[q] - a * m.z[i]),
+                    None => (a * ux[q], a * uy[q], a * uz[q]),
+                };
+            }
+        });
+}
+
+/// Largest drift speed max_k |u_mk| over the particles, m/s (for the time
+/// step rule of PHYSICS.md §7; NaN propagates).
+pub fn max_drift_speed(u: PhaseVel, n: usize) -> f32 {
+    crate::blocks::max_f32(n, |i| {
+        let mut m = 0.0f32;
+        for k in 0..u.phases() {
+            let s = (u.x[k][i] * u.x[k][i] + u.y[k][i] * u.y[k][i] + u.z[k][i] * u.z[k][i]).sqrt();
+            if s.is_nan() || s > m {
+                m = s;
+            }
+        }
+        m
+    })
+}

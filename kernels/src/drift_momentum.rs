@@ -1,0 +1,87 @@
+//! Pass 11 (PHYSICS.md §6): the drift momentum term of the mixture,
+//! a^Dm_i = -(1/rho_i) div( sum_k alpha_k rho_k u_mk (x) u_mk ) (Manninen et
+//! al. 1996; PHYSICS.md §4.1), in the symmetric SPH form
+//!
+//! a^Dm_i = -(1/rho_i) sum_j Vbar_ij sum_k rho_k [ alpha_k,i u_mk,i (u_mk,i . grad W_ij)
+//!                                              + alpha_k,j u_mk,j (u_mk,j . grad W_ij) ],
+//!
+//! over fluid neighbours, with rho_i the rest mixture density rho_fm,i. As
+//! m_i / rho_fm,i = h^3 for every particle and the bracket is symmetric in
+//! i and j, the pair forces cancel: the term conserves momentum.
+//!
+//! Sign (PHYSICS.md §8.15): the mixture momentum equation has the minus
+//! sign above; the reference codes [RG] and [AC] add the term with a plus
+//! sign. `sign` is -1 for the physical form, +1 for the codes' form.
+
+use crate::blocks::BLOCK;
+use crate::lanes::{gather, load, sum, F, LANES};
+use crate::neighbors::PairLists;
+use crate::phases::{PhaseVel, VelMut};
+use rayon::prelude::*;
+
+/// Inputs of [`drift_momentum`].
+pub struct DriftMomentumInput<'a> {
+    /// Fluid-fluid pairs holding Vbar_ij grad W_ij (after
+    /// `iisph::scale_by_pair_volume`).
+    pub ff: &'a PairLists,
+    /// Volume fraction alpha_k per phase.
+    pub alpha: &'a [&'a [f32]],
+    /// Drift velocity u_mk per phase, m/s.
+    pub u_drift: PhaseVel<'a>,
+    /// Rest density rho_k per phase, kg/m^3.
+    pub density: &'a [f32],
+    /// Rest mixture density rho_fm per particle, kg/m^3.
+    pub rest_density: &'a [f32],
+    /// -1: the physical sign; +1: the sign of [RG] and [AC].
+    pub sign: f32,
+}
+
+/// a^Dm per particle, m/s^2 (module doc).
+pub fn drift_momentum(inp: &DriftMomentumInput, out: VelMut) {
+    let np = inp.alpha.len();
+    let u = inp.u_drift;
+    out.x
+        .par_chunks_mut(BLOCK)
+        .zip(out.y.par_chunks_mut(BLOCK))
+        .zip(out.z.par_chunks_mut(BLOCK))
+        .zip(inp.ff.used().par_iter())
+        .enumerate()
+        .for_each(|(b, (((ox, oy), oz), blk))| {
+            for q in 0..ox.len() {
+                let i = b * BLOCK + q;
+                let (mut ax, mut ay, mut az) = (F::ZERO, F::ZERO, F::ZERO);
+                let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
+                let r = blk.range(q);
+                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+                let mut p = r.start;
+                while p < r.end {
+                    let (x, y, z) = (load(gx, p), load(gy, p), load(gz, p));
+                    sx += x;
+                    sy += y;
+                    sz += z;
+                    for k in 0..np {
+                        let (ux, uy, uz) = (gather(u.x[k], j, p), gather(u.y[k], j, p), gather(u.z[k], j, p));
+                        let t = F::splat(inp.density[k]) * gather(inp.alpha[k], j, p) * (ux * x + uy * y + uz * z);
+                        ax += t * ux;
+                        ay += t * uy;
+                        az += t * uz;
+                    }
+                    p += LANES;
+                }
+                // The particle's own terms: sum_j of alpha_k,i u_mk,i
+                // (u_mk,i . g_ij) = alpha_k,i u_mk,i (u_mk,i . sum_j g_ij).
+                let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
+                let mut a = [sum(ax), sum(ay), sum(az)];
+                for k in 0..np {
+                    let (ux, uy, uz) = (u.x[k][i], u.y[k][i], u.z[k][i]);
+                    let t = inp.density[k] * inp.alpha[k][i] * (ux * sx + uy * sy + uz * sz);
+                    a[0] += t * ux;
+                    a[1] += t * uy;
+                    a[2] += t * uz;
+                }
+                let rho = inp.rest_density[i];
+                let c = if rho > 0.0 { inp.sign / rho } else { 0.0 };
+                (ox[q], oy[q], oz[q]) = (c * a[0], c * a[1], c * a[2]);
+            }
+        });
+}

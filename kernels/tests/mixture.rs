@@ -1,0 +1,319 @@
+#![allow(clippy::needless_range_loop)] // particle index i across per-phase arrays [k][i]
+//! Contracts of the mixture kernels on random input (PHYSICS.md §4.1):
+//! the conservative transport keeps every phase's volume, the partition of
+//! unity and positivity; drift velocities have no mass-weighted mean; the
+//! phase pair weights of the viscosity are exactly 1 for one phase.
+
+use porosph_kernels::blocks::BLOCK;
+use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::drift::{self, PhaseVelocityInput};
+use porosph_kernels::grid::CellGrid;
+use porosph_kernels::iisph::Vel;
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::phase_transport::{correct, correction_sums, outflow_limit, pair_limit, transport};
+use porosph_kernels::phases::{PhaseConstants, PhaseVel, VelMut};
+use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
+
+struct Lcg(u64);
+impl Lcg {
+    /// Uniform in [0, 1).
+    fn next(&mut self) -> f32 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// A jittered lattice of n^3 particles of spacing 1 (H = 2), Morton-sorted,
+/// with its fluid-fluid pairs; the gradients are scaled by Vbar = 1.
+struct Lattice {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    ff: PairLists,
+}
+
+fn lattice(n: usize, rng: &mut Lcg) -> Lattice {
+    let mut pts = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let jit = |r: &mut Lcg| 0.2 * (r.next() - 0.5);
+                pts.push([i as f32 + jit(rng), j as f32 + jit(rng), k as f32 + jit(rng)]);
+            }
+        }
+    }
+    let (x0, y0, z0): (Vec<f32>, Vec<f32>, Vec<f32>) =
+        (pts.iter().map(|p| p[0]).collect(), pts.iter().map(|p| p[1]).collect(), pts.iter().map(|p| p[2]).collect());
+    let h = 2.0;
+    let mut keys = vec![0; x0.len()];
+    compute_keys(&x0, &y0, &z0, 1.0 / h, &mut keys);
+    let (mut s, mut perm) = (Vec::new(), Vec::new());
+    sort_permutation(&keys, &mut s, &mut perm);
+    let p = |v: &Vec<f32>| perm.iter().map(|&i| v[i as usize]).collect::<Vec<f32>>();
+    let (x, y, z) = (p(&x0), p(&y0), p(&z0));
+    let sk: Vec<u64> = s.iter().map(|&(k, _)| k).collect();
+    let mut g = CellGrid::default();
+    g.build(&sk, h);
+    let mut ff = PairLists::default();
+    let pt = Points { x: &x, y: &y, z: &z };
+    build_pairs(&mut ff, pt, pt, &g, None, &CubicSpline::new(h));
+    Lattice { x, y, z, ff }
+}
+
+/// Random fractions (a partition of unity, a third of the particles pure
+/// in one phase) for `np` phases.
+fn fractions(n: usize, np: usize, rng: &mut Lcg) -> Vec<Vec<f32>> {
+    let mut a = vec![vec![0.0f32; n]; np];
+    for i in 0..n {
+        if rng.next() < 0.33 {
+            a[((rng.next() * np as f32) as usize).min(np - 1)][i] = 1.0;
+            continue;
+        }
+        let w: Vec<f32> = (0..np).map(|_| rng.next()).collect();
+        let s: f32 = w.iter().sum();
+        for k in 0..np {
+            a[k][i] = w[k] / s;
+        }
+    }
+    a
+}
+
+/// "The conservative transport conserves each phase's volume, keeps
+/// sum_k alpha_k = 1 and alpha >= 0, for any fluxes that add up to 0 over
+/// the phases" — with random fluxes large enough that the positivity
+/// limiter acts on most particles (dt |F| / h up to 2). Tolerances are f32
+/// rounding of sums over ~50 pairs: 1e-5 per particle, 1e-6 relative in
+/// the totals.
+#[test]
+fn conservative_transport_conserves_and_stays_positive() {
+    let mut rng = Lcg(11);
+    let lat = lattice(12, &mut rng);
+    let n = lat.x.len();
+    for np in [2usize, 3] {
+        let alpha = fractions(n, np, &mut rng);
+        // Fluxes F_k = alpha_k (v_k - sum alpha v): add up to 0 per particle.
+        let v: Vec<[Vec<f32>; 3]> =
+            (0..np).map(|_| std::array::from_fn(|_| (0..n).map(|_| 4.0 * rng.next() - 2.0).collect())).collect();
+        let mut f: Vec<[Vec<f32>; 3]> = (0..np).map(|_| std::array::from_fn(|_| vec![0.0; n])).collect();
+        for i in 0..n {
+            for c in 0..3 {
+                let m: f32 = (0..np).map(|k| alpha[k][i] * v[k][c][i]).sum();
+                for k in 0..np {
+                    f[k][c][i] = alpha[k][i] * (v[k][c][i] - m);
+                }
+            }
+        }
+        let fx: Vec<&[f32]> = f.iter().map(|f| f[0].as_slice()).collect();
+        let fy: Vec<&[f32]> = f.iter().map(|f| f[1].as_slice()).collect();
+        let fz: Vec<&[f32]> = f.iter().map(|f| f[2].as_slice()).collect();
+        let flux = PhaseVel { x: &fx, y: &fy, z: &fz };
+        let dt = 0.5;
+        let nb = lat.ff.used().len();
+        let mut lambda = vec![vec![0.0f32; n]; np];
+        let mut phi = vec![vec![Vec::new(); nb]; np];
+        for (k, l) in lambda.iter_mut().enumerate() {
+            outflow_limit(&lat.ff, &alpha[k], flux.phase(k), dt, l, &mut phi[k]);
+        }
+        let limited = lambda.iter().flatten().filter(|&&l| l < 1.0).count();
+        let lref: Vec<&[f32]> = lambda.iter().map(|l| l.as_slice()).collect();
+        let phiref: Vec<&[Vec<f32>]> = phi.iter().map(|p| p.as_slice()).collect();
+        let mut pl = vec![Vec::new(); nb];
+        pair_limit(&lat.ff, &phiref, &lref, &mut pl);
+        let mut next = vec![vec![0.0f32; n]; np];
+        for (k, out) in next.iter_mut().enumerate() {
+            transport(&lat.ff, &alpha[k], &phi[k], &pl, dt, out);
+        }
+        let moved: f64 =
+            (0..np).map(|k| (0..n).map(|i| f64::from((next[k][i] - alpha[k][i]).abs())).sum::<f64>()).sum();
+        for k in 0..np {
+            let (a, b): (f64, f64) =
+                (alpha[k].iter().map(|&x| f64::from(x)).sum(), next[k].iter().map(|&x| f64::from(x)).sum());
+            assert!(((b - a) / a).abs() < 1e-6, "phase {k} of {np}: volume {a} -> {b}");
+        }
+        for i in 0..n {
+            let s: f32 = (0..np).map(|k| next[k][i]).sum();
+            assert!((s - 1.0).abs() < 1e-5, "particle {i}: sum {s}");
+            for (k, a) in next.iter().enumerate() {
+                assert!(a[i] >= -1e-5, "particle {i}, phase {k}: {}", a[i]);
+            }
+        }
+        // The correction then only removes rounding.
+        let nref: Vec<&[f32]> = next.iter().map(|a| a.as_slice()).collect();
+        let (mut total, mut largest) = (vec![0.0; n], vec![0u32; n]);
+        correction_sums(&nref, &mut total, &mut largest);
+        let mut fixed = vec![vec![0.0f32; n]; np];
+        for (k, out) in fixed.iter_mut().enumerate() {
+            correct(&next[k], &total, &largest, k, out);
+        }
+        for i in 0..n {
+            let s: f32 = (0..np).map(|k| fixed[k][i]).sum();
+            assert!((s - 1.0).abs() < 1e-6 && (0..np).all(|k| fixed[k][i] >= 0.0));
+        }
+        println!(
+            "{np} phases, {n} particles: {limited} particle-phase limits < 1, total |change| {moved:.1} (fractions)"
+        );
+        assert!(limited > n / 10, "the limiter was not exercised");
+        assert!(moved > n as f64 / 10.0, "nothing moved");
+    }
+}
+
+/// The correction: negatives clamped, the rest renormalised; all <= 0
+/// gives the phase that was largest before clamping.
+#[test]
+fn correction_clamps_renormalises_and_falls_back() {
+    let a0 = [0.6f32, -0.2, -0.5];
+    let a1 = [0.6f32, -0.1, -0.1];
+    let a2 = [0.0f32, 0.5, 0.0];
+    let next: [&[f32]; 3] = [&a0, &a1, &a2];
+    let (mut total, mut largest) = (vec![0.0; 3], vec![0u32; 3]);
+    correction_sums(&next, &mut total, &mut largest);
+    let out: Vec<Vec<f32>> = (0..3)
+        .map(|k| {
+            let mut o = vec![0.0; 3];
+            correct(next[k], &total, &largest, k, &mut o);
+            o
+        })
+        .collect();
+    // Particle 0: (0.6, 0.6, 0) -> (0.5, 0.5, 0); particle 1: (0, 0, 0.5) -> (0, 0, 1);
+    // particle 2: (-0.5, -0.1, 0) all <= 0 -> the largest, phase 2 (0.0).
+    assert_eq!([out[0][0], out[1][0], out[2][0]], [0.5, 0.5, 0.0]);
+    assert_eq!([out[0][1], out[1][1], out[2][1]], [0.0, 0.0, 1.0]);
+    assert_eq!([out[0][2], out[1][2], out[2][2]], [0.0, 0.0, 1.0]);
+}
+
+/// Drift velocities of random fields: sum_k c_k u_mk = 0 wherever no
+/// guard acts (every alphahat_k >= 0.01), the volume fluxes add up to 0
+/// everywhere, and a single phase has no drift at all.
+#[test]
+fn drift_has_no_mass_weighted_mean_and_fluxes_add_up_to_zero() {
+    let mut rng = Lcg(5);
+    let lat = lattice(10, &mut rng);
+    let n = lat.x.len();
+    let np = 3;
+    let alpha = fractions(n, np, &mut rng);
+    let density = [850.0f32, 1000.0, 1300.0];
+    let alpha_f = vec![1.0f32; n];
+    let p: Vec<f32> = (0..n).map(|_| 1000.0 * rng.next()).collect();
+    let mut pf = vec![0.0; n];
+    drift::pressure_per_fraction(&p, &alpha_f, &mut pf);
+    let field = |r: &mut Lcg, s: f32| -> Vec<f32> { (0..n).map(|_| s * (r.next() - 0.5)).collect() };
+    let (avx, avy, avz) = (field(&mut rng, 2.0), field(&mut rng, 2.0), field(&mut rng, 2.0));
+    let (apx, apy, apz) = (field(&mut rng, 20.0), field(&mut rng, 20.0), field(&mut rng, 20.0));
+    for fraction_pressure in [false, true] {
+        let inp = PhaseVelocityInput {
+            ff: &lat.ff,
+            alpha_f: &alpha_f,
+            p_per_fraction: if fraction_pressure { Some(&pf) } else { None },
+            a_visc: Vel { x: &avx, y: &avy, z: &avz },
+            a_p: Vel { x: &apx, y: &apy, z: &apz },
+        };
+        let mut u: Vec<[Vec<f32>; 3]> = (0..np).map(|_| std::array::from_fn(|_| vec![0.0; n])).collect();
+        let mut w: Vec<[Vec<f32>; 3]> = (0..np).map(|_| std::array::from_fn(|_| vec![0.0; n])).collect();
+        for k in 0..np {
+            let phase = PhaseConstants { density: density[k], tau: 1e-5, sigma: 1e-3 };
+            let [ux, uy, uz] = &mut u[k];
+            let [wx, wy, wz] = &mut w[k];
+            drift::phase_velocity(
+                &inp,
+                &alpha[k],
+                phase,
+                VelMut { x: ux, y: uy, z: uz },
+                VelMut { x: wx, y: wy, z: wz },
+            );
+        }
+        let (mut s, mut m): ([Vec<f32>; 3], [Vec<f32>; 3]) =
+            (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
+        {
+            let wx: Vec<&[f32]> = w.iter().map(|w| w[0].as_slice()).collect();
+            let wy: Vec<&[f32]> = w.iter().map(|w| w[1].as_slice()).collect();
+            let wz: Vec<&[f32]> = w.iter().map(|w| w[2].as_slice()).collect();
+            let aref: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+            let [sx, sy, sz] = &mut s;
+            let [mx, my, mz] = &mut m;
+            drift::mixture_velocity(
+                &aref,
+                &alpha_f,
+                &density,
+                PhaseVel { x: &wx, y: &wy, z: &wz },
+                VelMut { x: sx, y: sy, z: sz },
+                VelMut { x: mx, y: my, z: mz },
+            );
+        }
+        let sv = Vel { x: &s[0], y: &s[1], z: &s[2] };
+        let mv = Vel { x: &m[0], y: &m[1], z: &m[2] };
+        for k in 0..np {
+            let [ux, uy, uz] = &mut u[k];
+            let [wx, wy, wz] = &mut w[k];
+            drift::drift_velocity(
+                &alpha[k],
+                sv,
+                Some(mv),
+                VelMut { x: ux, y: uy, z: uz },
+                VelMut { x: wx, y: wy, z: wz },
+            );
+        }
+        // f32 rounding of sums of a few terms, relative to the largest flux
+        // and drift of the field.
+        let fscale = w.iter().flat_map(|w| w.iter().flatten()).fold(0.0f32, |a, &b| a.max(b.abs()));
+        let uscale = u.iter().flat_map(|u| u.iter().flatten()).fold(0.0f32, |a, &b| a.max(b.abs()));
+        let (mut checked, mut scale) = (0, 0.0f32);
+        for i in 0..n {
+            let mass: f32 = (0..np).map(|k| alpha[k][i] * density[k]).sum();
+            for c in 0..3 {
+                let fsum: f32 = (0..np).map(|k| w[k][c][i]).sum();
+                assert!(fsum.abs() <= 1e-5 * fscale, "particle {i}: fluxes add up to {fsum} (scale {fscale})");
+                if (0..np).all(|k| alpha[k][i] >= 0.01) {
+                    let cu: f32 = (0..np).map(|k| alpha[k][i] * density[k] / mass * u[k][c][i]).sum();
+                    let umax = (0..np).map(|k| u[k][c][i].abs()).fold(0.0, f32::max);
+                    assert!(cu.abs() <= 1e-5 * uscale, "particle {i}: sum c u = {cu} (scale {uscale})");
+                    scale = scale.max(umax);
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > n && scale > 1e-3, "checked {checked}, |u| up to {scale}");
+    }
+}
+
+/// With one phase of fraction 1 the phase pair weight is exactly 1, so the
+/// mixture viscosity is bitwise the one-phase viscosity (PHYSICS.md §5).
+#[test]
+fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
+    let mut rng = Lcg(3);
+    let lat = lattice(10, &mut rng);
+    let n = lat.x.len();
+    // The viscosity pass uses unscaled gradients; a fresh list would have
+    // them, but scaling by Vbar = 1 leaves them exact anyway.
+    let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
+    let rho = vec![1000.0f32; n];
+    let mu = vec![0.5f32; n];
+    let inp = ViscosityInput {
+        ff: &lat.ff,
+        x: Points { x: &lat.x, y: &lat.y, z: &lat.z },
+        u: Vel { x: &u[0], y: &u[1], z: &u[2] },
+        rest_density: &rho,
+        mu: &mu,
+        h: 1.0,
+        gravity: [0.0, -9.81, 0.0],
+        dt: 0.01,
+    };
+    let mut a: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut b: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut av: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    {
+        let [ax, ay, az] = &mut a;
+        predict_velocity(&inp, ax, ay, az);
+    }
+    let one = vec![1.0f32; n];
+    let alpha: [&[f32]; 1] = [&one];
+    {
+        let [bx, by, bz] = &mut b;
+        let [vx, vy, vz] = &mut av;
+        predict_velocity_mixture(&inp, &alpha, VelMut { x: bx, y: by, z: bz }, VelMut { x: vx, y: vy, z: vz });
+    }
+    for c in 0..3 {
+        assert!(a[c].iter().zip(&b[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}");
+    }
+    assert!(av[0].iter().any(|&x| x != 0.0));
+    assert_eq!(n.div_ceil(BLOCK), lat.ff.used().len());
+}
