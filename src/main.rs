@@ -5,6 +5,7 @@ use porosph::builtin;
 use porosph::io::checkpoint::{file_kind, inspect_checkpoint, read_checkpoint, FileKind};
 use porosph::io::inspect_frame;
 use porosph::pipeline::Simulation;
+use porosph::render::{self, Camera, ColorMode, RenderOptions};
 use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -86,6 +87,39 @@ enum Command {
         /// A frame (.vtkhdf) or checkpoint (.h5) file; recognised by content.
         file: PathBuf,
     },
+    /// Render a frame to a PNG picture (headless: shaded particle spheres),
+    /// or with --movie every frame of a run directory to OUTDIR/render/.
+    Render {
+        /// A frame file (.vtkhdf), or with --movie a run directory (OUTDIR,
+        /// holding frames/).
+        input: PathBuf,
+        /// Output picture (default: the frame's name with .png).
+        #[arg(short, long, conflicts_with = "movie")]
+        out: Option<PathBuf>,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 720)]
+        height: u32,
+        /// Colour by: phase (the phase mixture), speed or pressure (colormap).
+        #[arg(long, default_value = "phase", value_parser = parse_color)]
+        color: ColorMode,
+        /// Draw the wall particles (faintly).
+        #[arg(long)]
+        walls: bool,
+        /// Orthographic camera (default: perspective).
+        #[arg(long)]
+        ortho: bool,
+        /// Render every frame of OUTDIR/frames/ to OUTDIR/render/frame_NNNNN.png,
+        /// with one camera and colour range for all.
+        #[arg(long)]
+        movie: bool,
+    },
+}
+
+fn parse_color(s: &str) -> Result<ColorMode, String> {
+    s.parse()
 }
 
 fn parse_every(s: &str) -> Result<CheckpointEvery, String> {
@@ -270,6 +304,103 @@ fn inspect_command(file: &Path) -> Result<(), String> {
     }
 }
 
+/// Renders one frame file to `out`.
+fn render_file(input: &Path, out: &Path, opts: &RenderOptions) -> Result<(), String> {
+    let frame = porosph::io::read_frame(input).map_err(|e| e.to_string())?;
+    let image = render::render(&frame, opts).map_err(|e| format!("{}: {e}", input.display()))?;
+    image.write_png(out).map_err(|e| e.to_string())
+}
+
+/// The frame files of a run directory, in name order.
+fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let frames = dir.join("frames");
+    let rd = std::fs::read_dir(&frames).map_err(|e| format!("{}: cannot list frames: {e}", frames.display()))?;
+    let mut files: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.extension().is_some_and(|x| x == "vtkhdf"))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("{}: no frames (*.vtkhdf)", frames.display()));
+    }
+    Ok(files)
+}
+
+fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
+    let files = frame_files(dir)?;
+    // One camera, particle size and colour range for the whole movie: from
+    // all frames' fluid and solid points.
+    let mut lo_hi: Option<([f32; 3], [f32; 3])> = None;
+    let mut range: Option<[f32; 2]> = None;
+    let mut spacing = None;
+    for (n, f) in files.iter().enumerate() {
+        eprint!("\rporosph: scanning frame {}/{}", n + 1, files.len());
+        let frame = porosph::io::read_frame(f).map_err(|e| format!("\n{e}"))?;
+        let err = |e: render::RenderError| format!("\n{}: {e}", f.display());
+        if let Some((a, b)) = render::bounds(&frame, opts.walls).map_err(err)? {
+            lo_hi = Some(match lo_hi {
+                None => (a, b),
+                Some((lo, hi)) => ([0, 1, 2].map(|c| lo[c].min(a[c])), [0, 1, 2].map(|c| hi[c].max(b[c]))),
+            });
+        }
+        if let Some([a, b]) = render::value_range(&frame, opts.color).map_err(err)? {
+            range = Some(range.map_or([a, b], |[lo, hi]| [lo.min(a), hi.max(b)]));
+        }
+        if spacing.is_none() {
+            spacing = render::estimate_spacing(&frame).map_err(err)?;
+        }
+    }
+    eprintln!();
+    if let Some((lo, hi)) = lo_hi {
+        opts.camera = Some(Camera::framing(lo, hi, opts.width, opts.height, opts.orthographic));
+    }
+    opts.range = range;
+    opts.radius = spacing.map(|s| 0.5 * s);
+    let out = dir.join("render");
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: cannot create: {e}", out.display()))?;
+    for (n, f) in files.iter().enumerate() {
+        let stem = f.file_stem().unwrap_or_default();
+        let png = out.join(stem).with_extension("png");
+        eprint!("\rporosph: rendering frame {}/{} -> {}", n + 1, files.len(), png.display());
+        render_file(f, &png, &opts).map_err(|e| format!("\n{e}"))?;
+    }
+    eprintln!("\nporosph: {} pictures in {}", files.len(), out.display());
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_command(
+    input: &Path,
+    out: Option<PathBuf>,
+    width: u32,
+    height: u32,
+    color: ColorMode,
+    walls: bool,
+    ortho: bool,
+    movie: bool,
+) -> Result<(), String> {
+    let opts = RenderOptions { width, height, color, walls, orthographic: ortho, ..RenderOptions::default() };
+    if width == 0 || height == 0 || width > render::MAX_SIDE || height > render::MAX_SIDE {
+        return Err(format!("--width and --height must be 1 to {} pixels", render::MAX_SIDE));
+    }
+    if movie {
+        if !input.is_dir() {
+            return Err(format!("{}: --movie needs a run directory (holding frames/)", input.display()));
+        }
+        return movie_command(input, opts);
+    }
+    if input.is_dir() {
+        return Err(format!(
+            "{}: a directory; give a frame file, or --movie to render every frame of a run",
+            input.display()
+        ));
+    }
+    let out = out.unwrap_or_else(|| input.with_extension("png"));
+    render_file(input, &out, &opts)?;
+    eprintln!("porosph: wrote {}", out.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -297,6 +428,9 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Inspect { file } => inspect_command(&file),
+        Command::Render { input, out, width, height, color, walls, ortho, movie } => {
+            render_command(&input, out, width, height, color, walls, ortho, movie)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

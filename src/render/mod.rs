@@ -1,0 +1,611 @@
+//! Headless preview renders of frames (`porosph render`): particles as
+//! Lambert-shaded sphere splats with a per-pixel depth buffer, seen by a
+//! perspective or orthographic camera framed on the fluid and solid
+//! particles, written as PNG.
+//!
+//! The renderer works in three parallel passes (rayon):
+//! 1. project every visible point to a screen-space disc (centre, radius in
+//!    pixels, view depth) and give it a linear RGB colour ([`ColorMode`]);
+//! 2. rasterise the discs: each covered pixel gets the depth of the sphere
+//!    surface there, and keeps the nearest with an atomic minimum over the key
+//!    `(depth, point index)`, so the result does not depend on the order the
+//!    threads run in (ties go to the lower index): the output is deterministic;
+//! 3. shade each pixel from the sphere normal of the point that won it.
+//!
+//! Colours are linear RGB throughout; pixels are encoded to sRGB at the end.
+
+use crate::io::{ArrayData, Frame, IoError};
+use crate::run::kind;
+use rayon::prelude::*;
+use std::fmt;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// What the particles are coloured by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ColorMode {
+    /// The frame's `color` array (the linear RGB mixture of phase colours).
+    #[default]
+    Phase,
+    /// `|velocity|` through the colormap, over [`RenderOptions::range`]
+    /// (default: 0 to the largest speed of the fluid and solid points).
+    Speed,
+    /// `pressure` through the colormap, over [`RenderOptions::range`]
+    /// (default: the smallest to the largest pressure of the fluid and
+    /// solid points).
+    Pressure,
+}
+
+impl std::str::FromStr for ColorMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "phase" => Ok(Self::Phase),
+            "speed" => Ok(Self::Speed),
+            "pressure" => Ok(Self::Pressure),
+            _ => Err(format!("unknown colour mode {s:?}: expected phase, speed or pressure")),
+        }
+    }
+}
+
+/// How the camera maps view space to the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Pinhole camera with this vertical field of view, radians.
+    Perspective { fov_y: f32 },
+    /// Parallel projection; the image shows this half height, m.
+    Orthographic { half_height: f32 },
+}
+
+/// A camera: position, orthonormal view axes and projection. View space has
+/// x to the right, y up and the camera looking along `forward`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Position, m.
+    pub eye: [f32; 3],
+    /// Unit view direction.
+    pub forward: [f32; 3],
+    /// Unit vector to the right of the image.
+    pub right: [f32; 3],
+    /// Unit vector to the top of the image.
+    pub up: [f32; 3],
+    /// Perspective or orthographic.
+    pub projection: Projection,
+}
+
+/// Downward tilt of the default camera, radians: it looks along -z and a
+/// little down, from above the front of the scene.
+const DEFAULT_TILT: f32 = 0.35;
+/// Turn of the default camera to the left about the vertical, radians (so
+/// the scene's right side shows).
+const DEFAULT_YAW: f32 = 0.3;
+/// Vertical field of view of the default perspective camera, radians.
+const DEFAULT_FOV_Y: f32 = 0.6;
+
+impl Camera {
+    /// The default camera for a scene inside the axis-aligned box `lo..hi`:
+    /// looking along -z, turned a little to the left and tilted down (from
+    /// above the front right of the scene), at the centre of the box, from
+    /// just far enough that the box's corners fit the image (`width` x
+    /// `height` pixels) with a small margin.
+    pub fn framing(lo: [f32; 3], hi: [f32; 3], width: u32, height: u32, orthographic: bool) -> Self {
+        let c = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])];
+        let (st, ct) = DEFAULT_TILT.sin_cos();
+        let (sy, cy) = DEFAULT_YAW.sin_cos();
+        let forward = [-sy * ct, -st, -cy * ct];
+        let right = [cy, 0.0, -sy];
+        let up = cross(right, forward);
+        let aspect = width.max(1) as f32 / height.max(1) as f32;
+        // Half extents with a margin, at least a millimetre.
+        let e = [0, 1, 2].map(|a| (0.5 * (hi[a] - lo[a])).max(1e-3) * 1.08);
+        let corners = (0..8).map(|m| [0, 1, 2].map(|a| if m >> a & 1 == 1 { e[a] } else { -e[a] }));
+        let (projection, d) = if orthographic {
+            let hh = corners.fold(0.0f32, |acc, o| acc.max(dot(o, up).abs()).max(dot(o, right).abs() / aspect));
+            (Projection::Orthographic { half_height: hh }, 4.0 * dot(e, e).sqrt())
+        } else {
+            let ty = (0.5 * DEFAULT_FOV_Y).tan();
+            let tx = ty * aspect;
+            // Corner o at view depth d + o.f must satisfy |o.r| <= tx (d + o.f)
+            // and |o.u| <= ty (d + o.f).
+            let d = corners.fold(0.0f32, |acc, o| {
+                let z = dot(o, forward);
+                acc.max(dot(o, right).abs() / tx - z).max(dot(o, up).abs() / ty - z)
+            });
+            (Projection::Perspective { fov_y: DEFAULT_FOV_Y }, d.max(1.2 * dot(e, e).sqrt()))
+        };
+        let eye = [c[0] - d * forward[0], c[1] - d * forward[1], c[2] - d * forward[2]];
+        Self { eye, forward, right, up, projection }
+    }
+
+    /// Pixels per metre at view depth `depth` for an image `height` pixels high.
+    fn scale(&self, depth: f32, height: u32) -> f32 {
+        let half = 0.5 * height as f32;
+        match self.projection {
+            Projection::Perspective { fov_y } => half / ((0.5 * fov_y).tan() * depth),
+            Projection::Orthographic { half_height } => half / half_height,
+        }
+    }
+
+    /// Where `p` lands on a `width` x `height` image: `[x, y, depth]` with
+    /// x, y in pixels (origin top left, pixel centres at +0.5) and depth
+    /// along the view direction, m; `None` behind a perspective camera.
+    pub fn project(&self, p: [f32; 3], width: u32, height: u32) -> Option<[f32; 3]> {
+        let d = [p[0] - self.eye[0], p[1] - self.eye[1], p[2] - self.eye[2]];
+        let (x, y, z) = (dot(d, self.right), dot(d, self.up), dot(d, self.forward));
+        if matches!(self.projection, Projection::Perspective { .. }) && z <= 1e-6 {
+            return None;
+        }
+        let s = self.scale(z, height);
+        Some([0.5 * width as f32 + s * x, 0.5 * height as f32 - s * y, z])
+    }
+}
+
+/// What and how to render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// What the particles are coloured by.
+    pub color: ColorMode,
+    /// Draw the wall particles (faintly); hidden by default.
+    pub walls: bool,
+    /// Orthographic rather than perspective default camera.
+    pub orthographic: bool,
+    /// Camera; `None`: [`Camera::framing`] of the fluid and solid points
+    /// (and of the walls, if drawn).
+    pub camera: Option<Camera>,
+    /// Particle radius, m; `None`: half the typical nearest-neighbour
+    /// distance ([`estimate_spacing`]).
+    pub radius: Option<f32>,
+    /// Value range of the colormap (speed, pressure); `None`: from the frame.
+    pub range: Option<[f32; 2]>,
+    /// Background colour, linear RGB.
+    pub background: [f32; 3],
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            width: 1280,
+            height: 720,
+            color: ColorMode::Phase,
+            walls: false,
+            orthographic: false,
+            camera: None,
+            radius: None,
+            range: None,
+            background: [0.9, 0.9, 0.9],
+        }
+    }
+}
+
+/// Largest image side accepted, pixels.
+pub const MAX_SIDE: u32 = 16384;
+
+/// Why a frame could not be rendered.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderError(pub String);
+
+impl fmt::Display for RenderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for RenderError {}
+
+/// An RGB image, 8 bits per channel (sRGB), rows top to bottom.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// `3 * width * height` bytes, row-major, RGB.
+    pub rgb: Vec<u8>,
+}
+
+impl Image {
+    /// The pixel at column `x`, row `y` (0, 0 is the top left).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// The image as PNG bytes (fast compression).
+    pub fn encode_png(&self) -> Result<Vec<u8>, RenderError> {
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, self.width, self.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Fast);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut w = enc.write_header().map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
+        w.write_image_data(&self.rgb).map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
+        w.finish().map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
+        Ok(out)
+    }
+
+    /// Writes the image as a PNG file (to a temporary name, then renamed).
+    pub fn write_png(&self, path: &Path) -> Result<(), IoError> {
+        let bytes = self.encode_png().map_err(|e| IoError::new(path, e))?;
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        let tmp = std::path::PathBuf::from(tmp);
+        std::fs::write(&tmp, bytes).map_err(|e| IoError::new(path, format!("cannot write: {e}")))?;
+        std::fs::rename(&tmp, path).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            IoError::new(path, format!("cannot write: {e}"))
+        })
+    }
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    dot(d, d).sqrt()
+}
+
+/// A float array of the frame, checked: `None` if absent.
+fn f32_array<'a>(frame: &'a Frame, name: &str, components: usize) -> Result<Option<&'a [f32]>, RenderError> {
+    let Some(a) = frame.arrays.iter().find(|a| a.name == name) else { return Ok(None) };
+    let ArrayData::F32(d) = &a.data else {
+        return Err(RenderError(format!("point array {name:?} is not float32")));
+    };
+    if a.components != components || d.len() != components * frame.points.len() {
+        return Err(RenderError(format!(
+            "point array {name:?} has {} values in {} components; expected {} components for {} points",
+            d.len(),
+            a.components,
+            components,
+            frame.points.len()
+        )));
+    }
+    Ok(Some(d))
+}
+
+/// The `kind` array (0 fluid, 1 solid, 2 wall); `None` if absent (all fluid).
+fn kinds(frame: &Frame) -> Result<Option<&[u8]>, RenderError> {
+    let Some(a) = frame.arrays.iter().find(|a| a.name == "kind") else { return Ok(None) };
+    match &a.data {
+        ArrayData::U8(d) if a.components == 1 && d.len() == frame.points.len() => Ok(Some(d)),
+        _ => Err(RenderError(format!(
+            "point array \"kind\" must be one uint8 per point ({} points)",
+            frame.points.len()
+        ))),
+    }
+}
+
+/// Whether point `i` is a wall particle.
+fn is_wall(k: Option<&[u8]>, i: usize) -> bool {
+    k.is_some_and(|k| k[i] == kind::WALL)
+}
+
+fn finite(p: [f32; 3]) -> bool {
+    p.iter().all(|c| c.is_finite())
+}
+
+/// The points the default camera, spacing and colour range are taken from:
+/// finite fluid and solid points.
+fn framed_points(frame: &Frame) -> Result<Vec<usize>, RenderError> {
+    let k = kinds(frame)?;
+    Ok((0..frame.points.len()).filter(|&i| !is_wall(k, i) && finite(frame.points[i])).collect())
+}
+
+/// An axis-aligned box: its lowest and highest corners, m.
+pub type Bounds = ([f32; 3], [f32; 3]);
+
+/// Axis-aligned bounds of the finite fluid and solid points, and of the
+/// wall points too if `walls` (`None` if there are none): what the default
+/// camera frames.
+pub fn bounds(frame: &Frame, walls: bool) -> Result<Option<Bounds>, RenderError> {
+    let idx = if walls {
+        (0..frame.points.len()).filter(|&i| finite(frame.points[i])).collect()
+    } else {
+        framed_points(frame)?
+    };
+    Ok(bounds_of(frame, &idx))
+}
+
+fn bounds_of(frame: &Frame, idx: &[usize]) -> Option<Bounds> {
+    let first = frame.points[*idx.first()?];
+    Some(idx.iter().fold((first, first), |(mut lo, mut hi), &i| {
+        for c in 0..3 {
+            lo[c] = lo[c].min(frame.points[i][c]);
+            hi[c] = hi[c].max(frame.points[i][c]);
+        }
+        (lo, hi)
+    }))
+}
+
+/// The typical particle spacing of the fluid and solid points, m: the median
+/// nearest-neighbour distance of up to 64 sample points (`None` with fewer
+/// than two distinct points).
+pub fn estimate_spacing(frame: &Frame) -> Result<Option<f32>, RenderError> {
+    let idx = framed_points(frame)?;
+    Ok(spacing_of(frame, &idx))
+}
+
+fn spacing_of(frame: &Frame, idx: &[usize]) -> Option<f32> {
+    if idx.len() < 2 {
+        return None;
+    }
+    let samples = idx.len().min(64);
+    let pts: Vec<[f32; 3]> = idx.iter().map(|&i| frame.points[i]).collect();
+    let mut nn: Vec<f32> = (0..samples)
+        .into_par_iter()
+        .map(|s| {
+            let p = pts[s * pts.len() / samples];
+            pts.iter()
+                .map(|&q| {
+                    let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                    dot(d, d)
+                })
+                .filter(|&d2| d2 > 0.0)
+                .fold(f32::INFINITY, f32::min)
+        })
+        .filter(|d| d.is_finite())
+        .map(f32::sqrt)
+        .collect();
+    if nn.is_empty() {
+        return None;
+    }
+    nn.sort_by(f32::total_cmp);
+    Some(nn[nn.len() / 2])
+}
+
+/// The scalar a colormap mode shows for every point (`None` for `Phase`).
+fn scalars(frame: &Frame, mode: ColorMode) -> Result<Option<Vec<f32>>, RenderError> {
+    let n = frame.points.len();
+    match mode {
+        ColorMode::Phase => Ok(None),
+        ColorMode::Speed => {
+            let v = f32_array(frame, "velocity", 3)?
+                .ok_or_else(|| RenderError("no point array \"velocity\" to colour by speed".into()))?;
+            Ok(Some(
+                (0..n)
+                    .map(|i| dot([v[3 * i], v[3 * i + 1], v[3 * i + 2]], [v[3 * i], v[3 * i + 1], v[3 * i + 2]]).sqrt())
+                    .collect(),
+            ))
+        }
+        ColorMode::Pressure => {
+            let p = f32_array(frame, "pressure", 1)?
+                .ok_or_else(|| RenderError("no point array \"pressure\" to colour by pressure".into()))?;
+            Ok(Some(p.to_vec()))
+        }
+    }
+}
+
+/// The default colormap range of `mode` for the frame: speed 0 to the
+/// largest speed, pressure smallest to largest, over the fluid and solid
+/// points (`None` for `Phase` or without finite values).
+pub fn value_range(frame: &Frame, mode: ColorMode) -> Result<Option<[f32; 2]>, RenderError> {
+    let Some(s) = scalars(frame, mode)? else { return Ok(None) };
+    let idx = framed_points(frame)?;
+    let vals = idx.iter().map(|&i| s[i]).filter(|v| v.is_finite());
+    let r = vals.fold(None, |acc: Option<[f32; 2]>, v| match acc {
+        None => Some([v, v]),
+        Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
+    });
+    Ok(r.map(|[lo, hi]| if mode == ColorMode::Speed { [0.0, hi] } else { [lo, hi] }))
+}
+
+/// Viridis, 9 control points (sRGB).
+const VIRIDIS: [[f32; 3]; 9] = [
+    [0.267, 0.005, 0.329],
+    [0.278, 0.175, 0.483],
+    [0.229, 0.322, 0.546],
+    [0.173, 0.449, 0.558],
+    [0.128, 0.567, 0.551],
+    [0.153, 0.680, 0.504],
+    [0.363, 0.786, 0.386],
+    [0.658, 0.862, 0.204],
+    [0.993, 0.906, 0.144],
+];
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb8(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// The colormap (viridis) at `t` in 0..1, linear RGB.
+pub fn colormap(t: f32) -> [f32; 3] {
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let x = t * (VIRIDIS.len() - 1) as f32;
+    let i = (x as usize).min(VIRIDIS.len() - 2);
+    let f = x - i as f32;
+    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    [0, 1, 2].map(|c| srgb_to_linear(a[c] + f * (b[c] - a[c])))
+}
+
+/// Colour of fluid and solid points when the frame has no `color` array.
+const DEFAULT_FLUID: [f32; 3] = [0.15, 0.45, 0.9];
+const DEFAULT_SOLID: [f32; 3] = [0.55, 0.4, 0.25];
+const WALL_COLOR: [f32; 3] = [0.55, 0.55, 0.55];
+/// Opacity of the nearest wall particle over what is behind it.
+const WALL_ALPHA: f32 = 0.3;
+
+/// One projected point: a disc on the screen.
+#[derive(Clone, Copy)]
+struct Splat {
+    x: f32,
+    y: f32,
+    /// Radius, pixels; 0: not drawn.
+    r: f32,
+    /// View depth of the centre, m.
+    depth: f32,
+    /// Sphere radius, m.
+    world_r: f32,
+    /// A wall particle (drawn translucent, in its own depth buffer).
+    wall: bool,
+    color: [f32; 3],
+}
+
+/// Orders floats as their bits (total order; -0 < +0).
+fn ordered_bits(f: f32) -> u32 {
+    let b = f.to_bits();
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// Renders `frame` as an image.
+pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError> {
+    let (w, h) = (opts.width, opts.height);
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        return Err(RenderError(format!("image size {w} x {h}: each side must be 1 to {MAX_SIDE} pixels")));
+    }
+    let n = frame.points.len();
+    if n >= u32::MAX as usize {
+        return Err(RenderError(format!("{n} points: at most {} can be rendered", u32::MAX - 1)));
+    }
+    let k = kinds(frame)?;
+    let colors = match opts.color {
+        ColorMode::Phase => f32_array(frame, "color", 3)?,
+        _ => None,
+    };
+    let values = scalars(frame, opts.color)?;
+    let framed = framed_points(frame)?;
+    let camera = match opts.camera {
+        Some(c) => c,
+        None => {
+            let (lo, hi) = bounds(frame, opts.walls)?.unwrap_or(([-0.5; 3], [0.5; 3]));
+            Camera::framing(lo, hi, w, h, opts.orthographic)
+        }
+    };
+    let radius = match opts.radius {
+        Some(r) if r.is_finite() && r > 0.0 => r,
+        Some(r) => return Err(RenderError(format!("particle radius {r}: must be a positive number"))),
+        None => match spacing_of(frame, &framed) {
+            Some(s) => 0.5 * s,
+            None => bounds_of(frame, &framed).map_or(0.01, |(lo, hi)| (0.02 * dist(lo, hi)).max(1e-3)),
+        },
+    };
+    let range = match (values.is_some(), opts.range) {
+        (false, _) => [0.0, 1.0],
+        (true, Some(r)) => r,
+        (true, None) => value_range(frame, opts.color)?.unwrap_or([0.0, 1.0]),
+    };
+    let span = if range[1] > range[0] { range[1] - range[0] } else { 1.0 };
+    let bg = opts.background;
+
+    // Pass 1: project.
+    let splats: Vec<Splat> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let p = frame.points[i];
+            let wall = is_wall(k, i);
+            let hidden = Splat { x: 0.0, y: 0.0, r: 0.0, depth: 0.0, world_r: 0.0, wall, color: [0.0; 3] };
+            if (wall && !opts.walls) || !finite(p) {
+                return hidden;
+            }
+            let Some([x, y, depth]) = camera.project(p, w, h) else { return hidden };
+            let r = radius * camera.scale(depth, h);
+            if !(r.is_finite() && x + r >= 0.0 && y + r >= 0.0 && x - r <= w as f32 && y - r <= h as f32) {
+                return hidden;
+            }
+            let color = if wall {
+                WALL_COLOR
+            } else if let Some(v) = &values {
+                colormap((v[i] - range[0]) / span)
+            } else if let Some(c) = colors {
+                [c[3 * i], c[3 * i + 1], c[3 * i + 2]]
+            } else if k.is_some_and(|k| k[i] == kind::SOLID) {
+                DEFAULT_SOLID
+            } else {
+                DEFAULT_FLUID
+            };
+            // At least about one pixel, so far particles do not vanish.
+            Splat { x, y, r: r.max(0.7), depth, world_r: radius, wall, color }
+        })
+        .collect();
+
+    // Pass 2: rasterise into the depth buffer; key = (depth, index).
+    let npix = w as usize * h as usize;
+    let zbuf: Vec<AtomicU64> = (0..npix).map(|_| AtomicU64::new(u64::MAX)).collect();
+    let wbuf: Vec<AtomicU64> = (0..if opts.walls { npix } else { 0 }).map(|_| AtomicU64::new(u64::MAX)).collect();
+    splats.par_iter().enumerate().with_min_len(1024).for_each(|(i, s)| {
+        if s.r <= 0.0 {
+            return;
+        }
+        let x0 = (s.x - s.r).floor().max(0.0) as u32;
+        let x1 = ((s.x + s.r).ceil() as u32).min(w);
+        let y0 = (s.y - s.r).floor().max(0.0) as u32;
+        let y1 = ((s.y + s.r).ceil() as u32).min(h);
+        let inv_r2 = 1.0 / (s.r * s.r);
+        let buf = if s.wall { &wbuf } else { &zbuf };
+        for py in y0..y1 {
+            let dy = py as f32 + 0.5 - s.y;
+            let row = py as usize * w as usize;
+            for px in x0..x1 {
+                let dx = px as f32 + 0.5 - s.x;
+                let q = (dx * dx + dy * dy) * inv_r2;
+                if q > 1.0 {
+                    continue;
+                }
+                let z = s.depth - s.world_r * (1.0 - q).sqrt();
+                let key = (u64::from(ordered_bits(z)) << 32) | i as u64;
+                let cell = &buf[row + px as usize];
+                if key < cell.load(Ordering::Relaxed) {
+                    cell.fetch_min(key, Ordering::Relaxed);
+                }
+            }
+        }
+    });
+
+    // Pass 3: shade.
+    let l = {
+        let v = [-0.4f32, 0.6, 0.7];
+        let m = dot(v, v).sqrt();
+        v.map(|c| c / m)
+    };
+    // Lambert-shaded colour of splat `key` at pixel (px, py).
+    let shade = |key: u64, px: usize, py: usize| -> [f32; 3] {
+        let s = &splats[(key & 0xffff_ffff) as usize];
+        let nx = (px as f32 + 0.5 - s.x) / s.r;
+        let ny = -(py as f32 + 0.5 - s.y) / s.r;
+        let nz = (1.0 - nx * nx - ny * ny).max(0.0).sqrt();
+        // View space: x right, y up, z towards the viewer.
+        let lambert = (nx * l[0] + ny * l[1] + nz * l[2]).max(0.0);
+        s.color.map(|c| c * (0.3 + 0.7 * lambert))
+    };
+    let mut rgb = vec![0u8; 3 * npix];
+    rgb.par_chunks_mut(3 * w as usize).enumerate().for_each(|(py, row)| {
+        for (px, out) in row.chunks_exact_mut(3).enumerate() {
+            let at = py * w as usize + px;
+            let key = zbuf[at].load(Ordering::Relaxed);
+            let mut c = if key == u64::MAX { bg } else { shade(key, px, py) };
+            if let Some(wk) = wbuf.get(at).map(|k| k.load(Ordering::Relaxed)) {
+                // The nearest wall particle, if in front, over the rest.
+                if wk != u64::MAX && wk >> 32 < key >> 32 {
+                    let wc = shade(wk, px, py);
+                    c = [0, 1, 2].map(|i| c[i] + WALL_ALPHA * (wc[i] - c[i]));
+                }
+            }
+            for i in 0..3 {
+                out[i] = linear_to_srgb8(c[i]);
+            }
+        }
+    });
+    Ok(Image { width: w, height: h, rgb })
+}

@@ -1,0 +1,257 @@
+//! `porosph render`: pictures of the expected size; a known frame renders
+//! its fluid and solid in their colours at the expected pixels and the
+//! background elsewhere; walls hidden by default; an empty frame is a
+//! background picture; `--movie` renders every frame; bad input is an error
+//! naming the file, never a panic.
+
+mod common;
+
+use common::TempDir;
+use porosph::io::{write_frame, ArrayData, Frame, PointArray};
+use porosph::render::{render, Camera, ColorMode, RenderOptions};
+use porosph::run::kind;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn porosph(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_porosph")).args(args).output().expect("run porosph")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+fn array(name: &str, components: usize, data: ArrayData) -> PointArray {
+    PointArray { name: name.into(), unit: String::new(), components, data }
+}
+
+/// A cube of 10^3 particles of spacing `d` centred at `c`.
+fn blob(c: [f32; 3], d: f32) -> Vec<[f32; 3]> {
+    let mut p = Vec::new();
+    for i in 0..10 {
+        for j in 0..10 {
+            for k in 0..10 {
+                p.push([0, 1, 2].map(|a| c[a] + d * ([i, j, k][a] as f32 - 4.5)));
+            }
+        }
+    }
+    p
+}
+
+const BLUE: [f32; 3] = [0.05, 0.2, 0.9];
+const RED: [f32; 3] = [0.9, 0.05, 0.05];
+const FLUID_AT: [f32; 3] = [-0.6, 0.0, 0.0];
+const SOLID_AT: [f32; 3] = [0.6, 0.0, 0.0];
+const WALL_AT: [f32; 3] = [0.0, 0.0, -0.3];
+
+/// A blue fluid blob on the left (x < 0), a red solid blob on the right,
+/// and a sheet of wall particles behind them between the two.
+fn known_frame() -> Frame {
+    let d = 0.03;
+    let mut points = blob(FLUID_AT, d);
+    let mut kinds = vec![kind::FLUID; points.len()];
+    let mut color: Vec<f32> = points.iter().flat_map(|_| BLUE).collect();
+    for p in blob(SOLID_AT, d) {
+        points.push(p);
+        kinds.push(kind::SOLID);
+        color.extend(RED);
+    }
+    for i in 0..10 {
+        for j in 0..10 {
+            points.push([WALL_AT[0] + d * (i as f32 - 4.5), WALL_AT[1] + d * (j as f32 - 4.5), WALL_AT[2]]);
+            kinds.push(kind::WALL);
+            color.extend([0.6, 0.6, 0.6]);
+        }
+    }
+    let n = points.len();
+    let speed: Vec<f32> = points.iter().flat_map(|p| [p[0] + 1.0, 0.0, 0.0]).collect();
+    Frame {
+        time: 0.5,
+        step: 10,
+        points,
+        arrays: vec![
+            array("velocity", 3, ArrayData::F32(speed)),
+            array("pressure", 1, ArrayData::F32((0..n).map(|i| i as f32).collect())),
+            array("color", 3, ArrayData::F32(color)),
+            array("kind", 1, ArrayData::U8(kinds)),
+            array("id", 1, ArrayData::U32((0..n as u32).collect())),
+        ],
+    }
+}
+
+fn opts() -> RenderOptions {
+    RenderOptions { width: 320, height: 200, ..RenderOptions::default() }
+}
+
+/// The pixel `p` projects to with the default camera of `frame`.
+fn pixel_of(frame: &Frame, o: &RenderOptions, p: [f32; 3]) -> (u32, u32) {
+    let (lo, hi) = porosph::render::bounds(frame, o.walls).unwrap().unwrap();
+    let cam = Camera::framing(lo, hi, o.width, o.height, o.orthographic);
+    let [x, y, _] = cam.project(p, o.width, o.height).unwrap();
+    (x as u32, y as u32)
+}
+
+fn background(o: &RenderOptions) -> [u8; 3] {
+    let img = render(&Frame::default(), &RenderOptions { width: 1, height: 1, ..o.clone() }).unwrap();
+    img.pixel(0, 0)
+}
+
+fn blueish(c: [u8; 3]) -> bool {
+    c[2] > 100 && c[2] as u32 > 2 * c[0] as u32 && c[2] > c[1]
+}
+
+fn redish(c: [u8; 3]) -> bool {
+    c[0] > 100 && c[0] as u32 > 2 * c[2] as u32 && c[0] as u32 > 2 * c[1] as u32
+}
+
+#[test]
+fn image_has_the_asked_size() {
+    let f = known_frame();
+    for (w, h) in [(320, 200), (64, 97), (1, 1)] {
+        let img = render(&f, &RenderOptions { width: w, height: h, ..opts() }).unwrap();
+        assert_eq!((img.width, img.height, img.rgb.len()), (w, h, 3 * (w * h) as usize));
+    }
+    // And the PNG says so.
+    let png = render(&f, &opts()).unwrap().encode_png().unwrap();
+    let dec = png::Decoder::new(std::io::Cursor::new(png)).read_info().unwrap();
+    let info = dec.info();
+    assert_eq!((info.width, info.height, info.color_type), (320, 200, png::ColorType::Rgb));
+}
+
+#[test]
+fn fluid_and_solid_render_in_their_colours_where_expected() {
+    let f = known_frame();
+    for ortho in [false, true] {
+        let o = RenderOptions { orthographic: ortho, ..opts() };
+        let img = render(&f, &o).unwrap();
+        let bg = background(&o);
+        let (fx, fy) = pixel_of(&f, &o, FLUID_AT);
+        let (sx, sy) = pixel_of(&f, &o, SOLID_AT);
+        assert!(fx < o.width / 2 && sx > o.width / 2, "fluid at {fx}, solid at {sx}");
+        assert!(blueish(img.pixel(fx, fy)), "ortho {ortho}: fluid pixel {:?}", img.pixel(fx, fy));
+        assert!(redish(img.pixel(sx, sy)), "ortho {ortho}: solid pixel {:?}", img.pixel(sx, sy));
+        // Background: the corners, the middle between the blobs (the wall
+        // sheet is there, hidden), above and below.
+        let (w, h) = (o.width, o.height);
+        for (x, y) in [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1), (w / 2, h / 2), (fx, 2), (sx, h - 3)] {
+            assert_eq!(img.pixel(x, y), bg, "ortho {ortho}: pixel ({x}, {y})");
+        }
+        // Most of the picture is background; the blobs cover a fair part.
+        let n_bg = img.rgb.chunks(3).filter(|c| *c == bg).count();
+        let total = (w * h) as usize;
+        assert!(n_bg > total / 2 && n_bg < total - total / 50, "{n_bg} of {total} background pixels");
+    }
+}
+
+#[test]
+fn walls_hidden_by_default_and_faint_when_asked() {
+    let f = known_frame();
+    let o = opts();
+    let bg = background(&o);
+    // A wall particle's centre (the sheet's centre is a gap between four).
+    let wall = [WALL_AT[0] + 0.015, WALL_AT[1] + 0.015, WALL_AT[2]];
+    let (wx, wy) = pixel_of(&f, &o, wall);
+    assert_eq!(render(&f, &o).unwrap().pixel(wx, wy), bg);
+    // Shown, the walls are framed too: a different camera.
+    let ow = RenderOptions { walls: true, ..o.clone() };
+    let (wx, wy) = pixel_of(&f, &ow, wall);
+    let shown = render(&f, &ow).unwrap().pixel(wx, wy);
+    assert_ne!(shown, bg);
+    // Faint: grey, close to the background.
+    assert!(shown.iter().zip(bg).all(|(&a, b)| a.abs_diff(b) < 90), "{shown:?} vs {bg:?}");
+}
+
+#[test]
+fn colormap_modes_differ_and_are_deterministic() {
+    let f = known_frame();
+    let base = render(&f, &opts()).unwrap();
+    for mode in [ColorMode::Speed, ColorMode::Pressure] {
+        let o = RenderOptions { color: mode, ..opts() };
+        let a = common::with_threads(1, || render(&f, &o).unwrap());
+        let b = common::with_threads(2, || render(&f, &o).unwrap());
+        assert_eq!(a, b, "{mode:?}: same picture on 1 and 2 threads");
+        assert_ne!(a, base);
+    }
+    let a = common::with_threads(1, || render(&f, &opts()).unwrap());
+    let b = common::with_threads(2, || render(&f, &opts()).unwrap());
+    assert_eq!(a, b);
+}
+
+#[test]
+fn empty_frame_is_a_background_picture() {
+    let o = opts();
+    let bg = background(&o);
+    let empty = Frame::default();
+    let img = render(&empty, &o).unwrap();
+    assert!(img.rgb.chunks(3).all(|c| c == bg));
+    // Only walls (hidden): background too; and speed mode needs velocity.
+    let mut f = known_frame();
+    let k: Vec<u8> = vec![kind::WALL; f.points.len()];
+    f.arrays.retain(|a| a.name != "kind");
+    f.arrays.push(array("kind", 1, ArrayData::U8(k)));
+    assert!(render(&f, &o).unwrap().rgb.chunks(3).all(|c| c == bg));
+    let err =
+        render(&Frame { points: vec![[0.0; 3]], ..Frame::default() }, &RenderOptions { color: ColorMode::Speed, ..o })
+            .unwrap_err();
+    assert!(err.0.contains("velocity"), "{err}");
+}
+
+#[test]
+fn bad_arrays_and_sizes_are_errors() {
+    let mut f = known_frame();
+    f.arrays.retain(|a| a.name != "color");
+    f.arrays.push(array("color", 3, ArrayData::F32(vec![0.5; 6])));
+    let e = render(&f, &opts()).unwrap_err();
+    assert!(e.0.contains("\"color\""), "{e}");
+    let e = render(&known_frame(), &RenderOptions { width: 0, ..opts() }).unwrap_err();
+    assert!(e.0.contains("image size"), "{e}");
+    // Non-finite points are skipped, not a panic.
+    let mut f = known_frame();
+    f.points[0] = [f32::NAN, 0.0, 0.0];
+    f.points[1] = [f32::INFINITY, 0.0, 0.0];
+    render(&f, &opts()).unwrap();
+}
+
+#[test]
+fn cli_renders_a_frame_and_a_movie() {
+    let dir = TempDir::new("render-cli");
+    let frames = dir.path("run/frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    let f = known_frame();
+    for i in 0..3 {
+        write_frame(&frames.join(format!("frame_{i:05}.vtkhdf")), &f).unwrap();
+    }
+    let one = frames.join("frame_00001.vtkhdf");
+    let png = dir.path("one.png");
+    let out = porosph(&["render", s(&one), "-o", s(&png), "--width", "100", "--height", "80", "--color", "speed"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let dec = png::Decoder::new(std::fs::File::open(&png).unwrap()).read_info().unwrap();
+    assert_eq!((dec.info().width, dec.info().height), (100, 80));
+
+    let out = porosph(&["render", s(&dir.path("run")), "--movie", "--width", "64", "--height", "48"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for i in 0..3 {
+        assert!(dir.path(&format!("run/render/frame_{i:05}.png")).is_file());
+    }
+
+    // Errors name the file and the reason; exit status 1, no panic.
+    let missing = dir.path("nope.vtkhdf");
+    let bad = dir.path("bad.vtkhdf");
+    std::fs::write(&bad, b"not hdf5").unwrap();
+    for (args, want) in [
+        (vec!["render", s(&missing)], s(&missing).to_string()),
+        (vec!["render", s(&bad)], s(&bad).to_string()),
+        (vec!["render", s(&dir.path("run"))], "--movie".to_string()),
+        (vec!["render", s(&one), "--movie"], "run directory".to_string()),
+        (vec!["render", s(&dir.0), "--movie"], "frames".to_string()),
+        (vec!["render", s(&one), "--width", "0"], "--width".to_string()),
+        (vec!["render", s(&one), "-o", "/nonexistent-dir/x.png"], "/nonexistent-dir/x.png: cannot write".to_string()),
+        (vec!["render", s(&one), "--color", "rainbow"], "rainbow".to_string()),
+    ] {
+        let out = porosph(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(err.contains(&want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
