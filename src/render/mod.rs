@@ -208,7 +208,8 @@ pub struct Image {
 }
 
 impl Image {
-    /// The pixel at column `x`, row `y` (0, 0 is the top left).
+    /// The pixel at column `x`, row `y` (0, 0 is the top left), sRGB.
+    /// Panics if (x, y) is outside the image.
     pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
         let i = 3 * (y as usize * self.width as usize + x as usize);
         [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
