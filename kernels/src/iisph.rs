@@ -13,18 +13,6 @@ use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
 use rayon::prelude::*;
 
-/// Harmonic pair volume Vbar_ij = 2 V_i V_j / (V_i + V_j), 0 if either is 0
-/// (PHYSICS.md §0, with the factor 2 the paper drops, §8.2).
-#[inline(always)]
-pub fn harmonic_volume(vi: f32, vj: f32) -> f32 {
-    let s = vi + vj;
-    if vi * vj > 0.0 {
-        2.0 * vi * vj / s
-    } else {
-        0.0
-    }
-}
-
 /// Pass 2/4b, fluid rows: sigma_i = sum_j V0_j W_ij over fluid (incl. self)
 /// and wall neighbours, and the current volume V_i = V0_i / sigma_i
 /// (PHYSICS.md §2.3). `sigma` is the smoothed outer-fluid fraction V0/V.
@@ -79,8 +67,9 @@ fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) ->
     sum(acc)
 }
 
-/// Harmonic pair volumes of a vector of pairs, lane-wise (0 where
-/// V_i V_j = 0).
+/// Harmonic pair volumes Vbar_ij = 2 V_i V_j / (V_i + V_j) of a vector of
+/// pairs, lane-wise, 0 where V_i V_j = 0 (PHYSICS.md §0, with the factor 2
+/// the paper drops, §8.2).
 #[inline(always)]
 fn harmonic_volumes(vi: F, vj: F) -> F {
     let prod = vi * vj;

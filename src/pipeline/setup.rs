@@ -69,6 +69,12 @@ impl Params {
         tau * (hi - lo) * g
     }
 
+    /// Reference density of the walls' output `density` (rho_ref V0/V):
+    /// the first phase's rest density (a scene has at least one phase).
+    pub fn wall_reference_density(&self) -> f32 {
+        self.phase_density.first().copied().unwrap_or(0.0)
+    }
+
     /// The lattice volume h^3, m^3: rest volume of a full fluid particle
     /// (P §6.1, V_f0 = alpha_f h^3) and of a wall particle.
     pub fn cell_volume(&self) -> f32 {
@@ -140,7 +146,7 @@ impl Simulation {
                 walls.sigma_static[i] = blk.range(q).map(|p| walls.rest_volume[blk.j[p] as usize] * blk.w[p]).sum();
             }
         }
-        let rho_ref = params.phase_density.first().copied().unwrap_or(1000.0);
+        let rho_ref = params.wall_reference_density();
         for (d, s) in walls.density.iter_mut().zip(&walls.sigma_static) {
             *d = rho_ref * s;
         }

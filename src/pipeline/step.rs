@@ -231,7 +231,11 @@ fn step_passes(
     tm.time(pass::DENSITIES, || {
         iisph::fluid_volumes(&w.ff, &w.fb, v0, &walls.rest_volume, sigma, vol);
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, v0, sigma_b, vol_b);
-        let rho_ref = p.phase_density.first().copied().unwrap_or(0.0);
+        // Output density of every wall: its fluid-free value, then the
+        // active walls' (no dependence on the last step's active set, which
+        // a resumed run does not have).
+        let rho_ref = p.wall_reference_density();
+        walls.density.par_iter_mut().zip(walls.sigma_static.par_iter()).for_each(|(d, s)| *d = rho_ref * s);
         for (k, &b) in w.active.iter().enumerate() {
             vol_b_full[b as usize] = vol_b[k];
             walls.density[b as usize] = rho_ref * sigma_b[k];
