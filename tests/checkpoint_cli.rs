@@ -87,7 +87,8 @@ fn inspect_tells_frames_from_checkpoints_and_reports_damage() {
         "water",
         "oil",
         "m^3",
-        "checksums:  all 19 datasets hold",
+        // scene + 10 fluid + 8 wall + 21 solid arrays (empty without solids).
+        "checksums:  all 40 datasets hold",
     ] {
         assert!(report.contains(want), "missing {want:?}");
     }

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{assert_same_bits, store_bits, TempDir, TWO_PHASE};
+use common::{assert_same_bits, solid_bits, store_bits, TempDir, FLOATING_BLOCK, TWO_PHASE};
 use porosph::io::checkpoint::{
     load_checkpoint, phase_volumes, read_checkpoint, read_checkpoint_with, write_checkpoint, ReadMethod, RunInfo,
 };
@@ -70,6 +70,36 @@ fn resumed_run_is_bitwise_the_uninterrupted_run() {
         // The state moved: this is not a comparison of two resting states.
         let start = Simulation::new(common::scene_text(TWO_PHASE));
         assert_ne!(store_bits(&start.fluid, &start.walls), store_bits(&straight.fluid, &straight.walls));
+    });
+}
+
+/// The same with an elastic solid in the fluid: the solid store (positions,
+/// velocities, rotations, pressures) is saved, and the elastic model's rest
+/// data is rebuilt from the rest positions exactly.
+#[test]
+fn resumed_run_with_a_solid_is_bitwise_the_uninterrupted_run() {
+    let (n, m) = (20, 20);
+    let dir = TempDir::new("restart-solid");
+    let ckpt = dir.path("ckpt.h5");
+    common::with_threads(2, || {
+        let mut straight = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        steps(&mut straight, n + m);
+        let mut first = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        steps(&mut first, n);
+        write_checkpoint(&ckpt, &first, &run_info(), None).unwrap_or_else(|e| panic!("{e}"));
+        drop(first);
+        let resumed = common::with_threads(1, || {
+            let (mut resumed, _) = load_checkpoint(&ckpt).unwrap_or_else(|e| panic!("{e}"));
+            steps(&mut resumed, m);
+            resumed
+        });
+        println!("{} fluid + {} solid particles, t = {} s", straight.fluid.len(), straight.solids.len(), straight.time);
+        assert!(!straight.solids.is_empty() && straight.last.cg_iterations > 0);
+        assert_eq!(resumed.dt.to_bits(), straight.dt.to_bits());
+        assert_same_bits(&store_bits(&resumed.fluid, &resumed.walls), &store_bits(&straight.fluid, &straight.walls));
+        assert_same_bits(&solid_bits(&resumed.solids), &solid_bits(&straight.solids));
+        let start = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        assert_ne!(solid_bits(&start.solids), solid_bits(&straight.solids));
     });
 }
 

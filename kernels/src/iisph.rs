@@ -2,30 +2,82 @@
 //! with pressure boundaries (Band et al. 2018a): static wall particles are
 //! rows of the pressure system. PHYSICS.md §2.2-2.4, passes 4 and 5 of §6.
 //!
-//! Notation: fluid particle i, wall (boundary) particle b. `FF`, `FB` are the
-//! fluid and wall neighbours of fluid particles; `BF` the fluid neighbours of
-//! the active wall particles (those with at least one fluid neighbour).
+//! Notation: fluid particle i, wall (boundary) particle b, solid particle s.
+//! `FF`, `FB`, `FS` are the fluid, wall and solid neighbours of fluid
+//! particles; `BF` the fluid neighbours of the active wall particles (those
+//! with at least one fluid neighbour), `SF` those of the solid particles.
+//! Solid particles are rows of the system like walls (PHYSICS.md §2.3), with
+//! their own predicted velocity u*_s, and they move within the solve: the
+//! caller gives each solid particle a pressure acceleration a^p_s built
+//! from F_s, the exact reaction of the pressure force on its fluid
+//! neighbours ([`solid_pressure_force`]), and the inverse mass that goes
+//! with it (the pipeline uses the body's rigid acceleration sum F_s / M;
+//! see `src/pipeline/step.rs`). Fixed solid particles have a^p_s = 0.
+//! Every solid argument is optional: without solids the fluid rows are
+//! exactly those of fluid and walls.
 //! After [`fluid_setup`] and [`wall_setup`], the stored pair gradient is
 //! g_ij = Vbar_ij grad W_ij with Vbar_ij = 2 V_i V_j / (V_i + V_j).
 
 use crate::blocks::BLOCK;
 use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
+use rayon::iter::Either;
 use rayon::prelude::*;
 
-/// Pass 2/4b, fluid rows: sigma_i = sum_j V0_j W_ij over fluid (incl. self)
-/// and wall neighbours, and the current volume V_i = V0_i / sigma_i
-/// (PHYSICS.md §2.3). `sigma` is the smoothed outer-fluid fraction V0/V.
-pub fn fluid_volumes(ff: &PairLists, fb: &PairLists, v0_f: &[f32], v0_b: &[f32], sigma: &mut [f32], vol: &mut [f32]) {
+/// The blocks of optional pair lists, or `None` for each of `nb` blocks.
+fn opt_blocks(l: Option<&PairLists>, nb: usize) -> impl IndexedParallelIterator<Item = Option<&PairBlock>> {
+    match l {
+        Some(l) => Either::Left(l.used().par_iter().map(Some)),
+        None => Either::Right((0..nb).into_par_iter().map(|_| None)),
+    }
+}
+
+/// The blocks of optional pair lists, mutably.
+fn opt_blocks_mut(l: Option<&mut PairLists>, nb: usize) -> impl IndexedParallelIterator<Item = Option<&mut PairBlock>> {
+    match l {
+        Some(l) => Either::Left(l.used_mut().par_iter_mut().map(Some)),
+        None => Either::Right((0..nb).into_par_iter().map(|_| None)),
+    }
+}
+
+/// Solid neighbours of fluid rows with one value per solid particle.
+#[derive(Clone, Copy)]
+pub struct SolidPairs<'a> {
+    /// `FS` pairs.
+    pub pairs: &'a PairLists,
+    /// The value per solid particle (rest volume, pressure, ...).
+    pub values: &'a [f32],
+}
+
+/// Pass 2/4b, fluid rows: sigma_i = sum_j V0_j W_ij over fluid (incl. self),
+/// wall and solid (`fs`, with the solids' rest volumes) neighbours, and the
+/// current volume V_i = V0_i / sigma_i (PHYSICS.md §2.3). `sigma` is the
+/// smoothed outer-fluid fraction V0/V.
+pub fn fluid_volumes(
+    ff: &PairLists,
+    fb: &PairLists,
+    fs: Option<SolidPairs>,
+    v0_f: &[f32],
+    v0_b: &[f32],
+    sigma: &mut [f32],
+    vol: &mut [f32],
+) {
+    let nb = ff.used().len();
+    let v0_s = fs.map_or(&[][..], |f| f.values);
     sigma
         .par_chunks_mut(BLOCK)
         .zip(vol.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
+        .zip(opt_blocks(fs.map(|f| f.pairs), nb))
         .enumerate()
-        .for_each(|(b, ((sig, v), (bf, bb)))| {
+        .for_each(|(b, (((sig, v), (bf, bb)), bs))| {
             for q in 0..sig.len() {
                 let i = b * BLOCK + q;
-                let s = weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f) + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
+                let mut s =
+                    weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f) + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
+                if let Some(bs) = bs {
+                    s += weighted_sum(&bs.j, &bs.w, bs.range(q), v0_s);
+                }
                 sig[q] = s;
                 v[q] = if s > 0.0 { v0_f[i] / s } else { 0.0 };
             }
@@ -53,6 +105,16 @@ pub fn wall_volumes(
             }
         },
     );
+}
+
+/// out_i = sum_j val_j W_ij over the pairs of every query (for example the
+/// solid part of a solid row's sigma, PHYSICS.md §2.3).
+pub fn kernel_sums(pairs: &PairLists, val: &[f32], out: &mut [f32]) {
+    out.par_chunks_mut(BLOCK).zip(pairs.used().par_iter()).for_each(|(o, blk)| {
+        for (q, o) in o.iter_mut().enumerate() {
+            *o = weighted_sum(&blk.j, &blk.w, blk.range(q), val);
+        }
+    });
 }
 
 #[inline(always)]
@@ -124,6 +186,13 @@ pub struct FluidRows<'a> {
     pub sigma: &'a [f32],
     /// Current volume of each wall particle (full wall array), m^3.
     pub vol_wall: &'a [f32],
+    /// Current volume of each solid particle, m^3 (empty without solids).
+    pub vol_solid: &'a [f32],
+    /// Predicted velocity u*_s of each solid particle, m/s (empty without solids).
+    pub u_solid: Vel<'a>,
+    /// The inverse mass with which a solid particle's acceleration responds
+    /// to its pressure force, 1/kg (0 for fixed ones).
+    pub inv_mass_solid: &'a [f32],
 }
 
 /// Rows below this outer fraction take no part in the solve (PHYSICS.md §2.4).
@@ -132,29 +201,38 @@ pub const MIN_ALPHA_F: f32 = 0.01;
 /// Pass 4c, fluid rows. First scales the fluid and wall pair gradients in
 /// place by the harmonic pair volume (g_ij = Vbar_ij grad W_ij), then forms
 /// the source S_f = alpha_f (1 + dt div*_f) - V0_f/V_f (P-Eq. 29) with
-/// div*_f = -sum_j Vbar (u*_f - u*_j).grad W (P-Eq. 25; walls have u* = 0),
+/// div*_f = -sum_j Vbar (u*_f - u*_j).grad W (P-Eq. 25; walls have u* = 0,
+/// solids their `u_solid`),
 /// and the diagonal
-/// a_ff = -dt^2 [ (V_f/m_f) |sum_j g_fj|^2 + sum_{j fluid} (V_j/m_j) |g_fj|^2 ]
-/// (PHYSICS.md §2.2).
+/// a_ff = -dt^2 [ (V_f/m_f) |sum_j g_fj|^2 + sum_{j fluid} (V_j/m_j) |g_fj|^2
+///               + sum_{s solid} (V_f/m_s) |g_fs|^2 ]
+/// (PHYSICS.md §2.2; the solid term is d(a^p_s)/dp_f of
+/// [`solid_pressure_force`]).
 pub fn fluid_setup(
     ff: &mut PairLists,
     fb: &mut PairLists,
+    fs: Option<&mut PairLists>,
     rows: FluidRows,
     dt: f32,
     source: &mut [f32],
     diag: &mut [f32],
 ) {
     let dt2 = dt * dt;
+    let nb = ff.used().len();
     source
         .par_chunks_mut(BLOCK)
         .zip(diag.par_chunks_mut(BLOCK))
         .zip(ff.used_mut().par_iter_mut().zip(fb.used_mut().par_iter_mut()))
+        .zip(opt_blocks_mut(fs, nb))
         .enumerate()
-        .for_each(|(b, ((src, dg), (bf, bb)))| {
+        .for_each(|(b, (((src, dg), (bf, bb)), mut bs))| {
             for (q, (src, dg)) in src.iter_mut().zip(dg.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
                 scale_pairs(bf, q, rows.vol[i], rows.vol);
                 scale_pairs(bb, q, rows.vol[i], rows.vol_wall);
+                if let Some(bs) = bs.as_deref_mut() {
+                    scale_pairs(bs, q, rows.vol[i], rows.vol_solid);
+                }
                 if rows.alpha_f[i] < MIN_ALPHA_F || rows.vol[i] <= 0.0 {
                     *src = 0.0;
                     *dg = 0.0;
@@ -189,9 +267,27 @@ pub fn fluid_setup(
                     sz += z;
                     k += LANES;
                 }
+                let mut s2_solid = F::ZERO;
+                if let Some(bs) = bs.as_deref() {
+                    let us = rows.u_solid;
+                    let r = bs.range(q);
+                    let mut k = r.start;
+                    while k < r.end {
+                        let (x, y, z) = (load(&bs.gx, k), load(&bs.gy, k), load(&bs.gz, k));
+                        let dux = uxi - gather(us.x, &bs.j, k);
+                        let duy = uyi - gather(us.y, &bs.j, k);
+                        let duz = uzi - gather(us.z, &bs.j, k);
+                        div -= dux * x + duy * y + duz * z;
+                        sx += x;
+                        sy += y;
+                        sz += z;
+                        s2_solid += gather(rows.inv_mass_solid, &bs.j, k) * (x * x + y * y + z * z);
+                        k += LANES;
+                    }
+                }
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
                 *src = rows.alpha_f[i] * (1.0 + dt * sum(div)) - rows.sigma[i];
-                *dg = -dt2 * (rows.vm[i] * (sx * sx + sy * sy + sz * sz) + sum(s2));
+                *dg = -dt2 * (rows.vm[i] * (sx * sx + sy * sy + sz * sz) + sum(s2) + rows.vol[i] * sum(s2_solid));
             }
         });
 }
@@ -210,12 +306,20 @@ pub struct WallRows<'a> {
     pub vm_fluid: &'a [f32],
     /// Fluid V, m^3.
     pub vol_fluid: &'a [f32],
+    /// The rows' own predicted velocity u*, m/s (compact): `Some` for solid
+    /// rows, `None` for static walls.
+    pub u_own: Option<Vel<'a>>,
+    /// The rows' own 1/m, 1/kg: `Some` for solid rows (0 where fixed).
+    pub inv_mass_own: Option<&'a [f32]>,
 }
 
-/// Pass 4c, wall rows: scales the wall-fluid pair gradients in place by the
-/// harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
-/// (P-Eq. 26) with div*_b = -sum_f Vbar (0 - u*_f).grad W_bf, and
-/// a_bb = -dt^2 sum_f (V_f/m_f) |g_bf|^2 (a static wall has no own term).
+/// Pass 4c, wall and solid rows: scales the row-fluid pair gradients in
+/// place by the harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
+/// (P-Eq. 26) with div*_b = -sum_f Vbar (u*_b - u*_f).grad W_bf (u*_b = 0
+/// for walls), and
+/// a_bb = -dt^2 [ sum_f (V_f/m_f) |g_bf|^2 + (1/m_b) (sum_f V_f g_bf).(sum_f g_bf) ]
+/// (the second term, d(a^p_b)/dp_b, only for solid rows: a static wall has
+/// no acceleration).
 pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32], diag: &mut [f32]) {
     let dt2 = dt * dt;
     source
@@ -237,28 +341,63 @@ pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32
                     s2 += gather(rows.vm_fluid, &blk.j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
-                *src = 1.0 + dt * sum(div) - rows.sigma[i];
-                *dg = -dt2 * sum(s2);
+                let mut div = sum(div);
+                let mut own = 0.0;
+                if let Some(u) = rows.u_own {
+                    let (mut gx, mut gy, mut gz) = (F::ZERO, F::ZERO, F::ZERO);
+                    let (mut vx, mut vy, mut vz) = (F::ZERO, F::ZERO, F::ZERO);
+                    let mut k = r.start;
+                    while k < r.end {
+                        let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+                        let v = gather(rows.vol_fluid, &blk.j, k);
+                        gx += x;
+                        gy += y;
+                        gz += z;
+                        vx += v * x;
+                        vy += v * y;
+                        vz += v * z;
+                        k += LANES;
+                    }
+                    let (gx, gy, gz) = (sum(gx), sum(gy), sum(gz));
+                    div -= u.x[i] * gx + u.y[i] * gy + u.z[i] * gz;
+                    let inv_m = rows.inv_mass_own.map_or(0.0, |m| m[i]);
+                    own = inv_m * (sum(vx) * gx + sum(vy) * gy + sum(vz) * gz);
+                }
+                *src = 1.0 + dt * div - rows.sigma[i];
+                *dg = -dt2 * (sum(s2) + own);
             }
         });
 }
 
 /// Pressure acceleration, P-Eq. 27 with the factor 2 restored:
-/// a^p_f = -(V_f/m_f) sum_j Vbar_fj (p_f + p_j) grad W_fj over fluid and wall
-/// neighbours (`p_b` is the full wall pressure array).
-pub fn pressure_acceleration(ff: &PairLists, fb: &PairLists, vm: &[f32], p_f: &[f32], p_b: &[f32], out: VelMut) {
+/// a^p_f = -(V_f/m_f) sum_j Vbar_fj (p_f + p_j) grad W_fj over fluid, wall
+/// and solid neighbours (`p_b` is the full wall pressure array; `fs` holds
+/// the solid pressures).
+pub fn pressure_acceleration(
+    ff: &PairLists,
+    fb: &PairLists,
+    fs: Option<SolidPairs>,
+    vm: &[f32],
+    p_f: &[f32],
+    p_b: &[f32],
+    out: VelMut,
+) {
+    let nb = ff.used().len();
+    let p_s = fs.map_or(&[][..], |f| f.values);
     out.x
         .par_chunks_mut(BLOCK)
         .zip(out.y.par_chunks_mut(BLOCK))
         .zip(out.z.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
+        .zip(opt_blocks(fs.map(|f| f.pairs), nb))
         .enumerate()
-        .for_each(|(b, (((ox, oy), oz), (bf, bb)))| {
+        .for_each(|(b, ((((ox, oy), oz), (bf, bb)), bs))| {
             for q in 0..ox.len() {
                 let i = b * BLOCK + q;
                 let pi = F::splat(p_f[i]);
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-                for (blk, p) in [(bf, p_f), (bb, p_b)] {
+                for (blk, p) in [(Some(bf), p_f), (Some(bb), p_b), (bs, p_s)] {
+                    let Some(blk) = blk else { continue };
                     let r = blk.range(q);
                     let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
                     let mut k = r.start;
@@ -295,16 +434,30 @@ pub struct Jacobi {
 }
 
 /// Relaxed Jacobi update of the fluid rows, P-Eq. 28:
-/// (Ap)_f = dt^2 sum_j Vbar (a^p_f - a^p_j).grad W (walls: a^p = 0),
-/// r_f = S_f - (Ap)_f, p_f <- max(0, p_f + omega r_f / a_ff).
+/// (Ap)_f = dt^2 sum_j Vbar (a^p_f - a^p_j).grad W (walls: a^p = 0; solids:
+/// the accelerations given with `fs`), r_f = S_f - (Ap)_f,
+/// p_f <- max(0, p_f + omega r_f / a_ff).
 /// Writes max(-r_f, 0) (the predicted compression) to `err`.
-pub fn fluid_jacobi(ff: &PairLists, fb: &PairLists, ap: Vel, rows: Rows, jac: Jacobi, p: &mut [f32], err: &mut [f32]) {
+#[allow(clippy::too_many_arguments)]
+pub fn fluid_jacobi(
+    ff: &PairLists,
+    fb: &PairLists,
+    fs: Option<(&PairLists, Vel)>,
+    ap: Vel,
+    rows: Rows,
+    jac: Jacobi,
+    p: &mut [f32],
+    err: &mut [f32],
+) {
     let dt2 = jac.dt * jac.dt;
+    let nb = ff.used().len();
+    let a_s = fs.map(|f| f.1);
     p.par_chunks_mut(BLOCK)
         .zip(err.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
+        .zip(opt_blocks(fs.map(|f| f.0), nb))
         .enumerate()
-        .for_each(|(b, ((pp, ee), (bf, bb)))| {
+        .for_each(|(b, (((pp, ee), (bf, bb)), bs))| {
             for (q, (p, e)) in pp.iter_mut().zip(ee.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
                 if rows.diag[i].abs() < f32::MIN_POSITIVE {
@@ -328,6 +481,16 @@ pub fn fluid_jacobi(ff: &PairLists, fb: &PairLists, ap: Vel, rows: Rows, jac: Ja
                     acc += axi * load(&bb.gx, k) + ayi * load(&bb.gy, k) + azi * load(&bb.gz, k);
                     k += LANES;
                 }
+                if let (Some(bs), Some(a)) = (bs, a_s) {
+                    let r = bs.range(q);
+                    let mut k = r.start;
+                    while k < r.end {
+                        acc += (axi - gather(a.x, &bs.j, k)) * load(&bs.gx, k)
+                            + (ayi - gather(a.y, &bs.j, k)) * load(&bs.gy, k)
+                            + (azi - gather(a.z, &bs.j, k)) * load(&bs.gz, k);
+                        k += LANES;
+                    }
+                }
                 let res = rows.source[i] - dt2 * sum(acc);
                 *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
                 *e = (-res).max(0.0);
@@ -336,8 +499,9 @@ pub fn fluid_jacobi(ff: &PairLists, fb: &PairLists, ap: Vel, rows: Rows, jac: Ja
 }
 
 /// Relaxed Jacobi update of the active wall rows (compact arrays):
-/// (Ap)_b = -dt^2 sum_f Vbar a^p_f.grad W_bf, then as [`fluid_jacobi`].
-pub fn wall_jacobi(bf: &PairLists, ap: Vel, rows: Rows, jac: Jacobi, p: &mut [f32]) {
+/// (Ap)_b = dt^2 sum_f Vbar (a^p_b - a^p_f).grad W_bf, with a^p_b = 0 for
+/// walls and `own` for solid rows, then as [`fluid_jacobi`].
+pub fn wall_jacobi(bf: &PairLists, ap: Vel, own: Option<Vel>, rows: Rows, jac: Jacobi, p: &mut [f32]) {
     let dt2 = jac.dt * jac.dt;
     p.par_chunks_mut(BLOCK).zip(bf.used().par_iter()).enumerate().for_each(|(b, (pp, blk))| {
         for (q, p) in pp.iter_mut().enumerate() {
@@ -348,15 +512,52 @@ pub fn wall_jacobi(bf: &PairLists, ap: Vel, rows: Rows, jac: Jacobi, p: &mut [f3
             }
             let r = blk.range(q);
             let mut acc = F::ZERO;
+            let (ox, oy, oz) =
+                own.map_or((F::ZERO, F::ZERO, F::ZERO), |a| (F::splat(a.x[i]), F::splat(a.y[i]), F::splat(a.z[i])));
             let mut k = r.start;
             while k < r.end {
-                acc += gather(ap.x, &blk.j, k) * load(&blk.gx, k)
-                    + gather(ap.y, &blk.j, k) * load(&blk.gy, k)
-                    + gather(ap.z, &blk.j, k) * load(&blk.gz, k);
+                acc += (gather(ap.x, &blk.j, k) - ox) * load(&blk.gx, k)
+                    + (gather(ap.y, &blk.j, k) - oy) * load(&blk.gy, k)
+                    + (gather(ap.z, &blk.j, k) - oz) * load(&blk.gz, k);
                 k += LANES;
             }
             let res = rows.source[i] + dt2 * sum(acc);
             *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
         }
     });
+}
+
+/// The force of the fluid's pressure on each solid particle, the exact
+/// reaction of the solid terms of [`pressure_acceleration`]: the fluid
+/// particle f receives -V_f Vbar_fs (p_f + p_s) grad W_fs from s, so s
+/// receives F_s = -sum_f V_f (p_s + p_f) Vbar_sf grad W_sf (N). `sf` holds
+/// g_sf = Vbar_sf grad W_sf (after [`wall_setup`] scaled it). This is "the
+/// boundary force the solid receives from the outer fluid" (P Alg. 2,
+/// PHYSICS.md §2.3); linear momentum of fluid + solid is conserved pairwise.
+pub fn solid_pressure_force(sf: &PairLists, p_s: &[f32], p_f: &[f32], vol_f: &[f32], out: VelMut) {
+    out.x
+        .par_chunks_mut(BLOCK)
+        .zip(out.y.par_chunks_mut(BLOCK))
+        .zip(out.z.par_chunks_mut(BLOCK))
+        .zip(sf.used().par_iter())
+        .enumerate()
+        .for_each(|(b, (((ox, oy), oz), blk))| {
+            for q in 0..ox.len() {
+                let i = b * BLOCK + q;
+                let ps = F::splat(p_s[i]);
+                let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
+                let r = blk.range(q);
+                let mut k = r.start;
+                while k < r.end {
+                    let c = gather(vol_f, &blk.j, k) * (ps + gather(p_f, &blk.j, k));
+                    sx += c * load(&blk.gx, k);
+                    sy += c * load(&blk.gy, k);
+                    sz += c * load(&blk.gz, k);
+                    k += LANES;
+                }
+                ox[q] = -sum(sx);
+                oy[q] = -sum(sy);
+                oz[q] = -sum(sz);
+            }
+        });
 }

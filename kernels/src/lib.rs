@@ -7,6 +7,7 @@ pub mod blocks;
 pub mod cubic_spline;
 pub mod drift;
 pub mod drift_momentum;
+pub mod elasticity;
 pub mod grid;
 pub mod iisph;
 pub mod integrate;

@@ -7,6 +7,7 @@
 //! /                   attrs: format = "porosph checkpoint", format_version (u32),
 //!                            time (f64, s), step (u64), dt (f32, s),
 //!                            fluid_particles (u64), wall_particles (u64),
+//!                            solid_particles (u64),
 //!                            failure (string; "" unless written when a step failed)
 //! /scene              u8 [n]: the scene text (UTF-8) exactly as read; attrs origin, xxh64
 //! /params             attrs: the parameters porosph derived from the scene
@@ -16,6 +17,9 @@
 //! /fluid/<name>       one dataset per registered fluid array: f32 or u32 [N],
 //!                     per-phase arrays f32 [K, N]; attrs unit, xxh64
 //! /walls/<name>       the same for the wall store, [N_walls]
+//! /solids/<name>      the same for the solid store, [N_solids] (the rest
+//!                     data of the elastic model, SS0, V0 and L, is rebuilt
+//!                     from the rest positions on load)
 //! ```
 //!
 //! Every dataset carries `xxh64`, the XXH64 (seed 0) of its little-endian
@@ -40,7 +44,7 @@ use super::xxh64::Xxh64;
 use super::IoError;
 use crate::pipeline::{Params, SavedState, Simulation};
 use crate::scene::Scene;
-use crate::store::{Column, ColumnMut, FluidStore, WallStore};
+use crate::store::{Column, ColumnMut, FluidStore, SolidStore, WallStore};
 use hdf5::dataset::Layout;
 use hdf5::types::{FixedUnicode, TypeDescriptor};
 use hdf5::{Dataset, File, Group, H5Type, Location};
@@ -202,6 +206,7 @@ fn write_contents(file: &File, sim: &Simulation, run: &RunInfo, failure: Option<
     write_attr(file, "dt", &sim.dt)?;
     write_attr(file, "fluid_particles", &(sim.fluid.len() as u64))?;
     write_attr(file, "wall_particles", &(sim.walls.len() as u64))?;
+    write_attr(file, "solid_particles", &(sim.solids.len() as u64))?;
     write_str_attr(file, "failure", failure.unwrap_or(""))?;
 
     let text = sim.scene.text.as_bytes();
@@ -260,6 +265,14 @@ fn write_contents(file: &File, sim: &Simulation, run: &RunInfo, failure: Option<
     sim.walls.for_each_column(|name, unit, c| {
         if result.is_ok() {
             result = write_column(&walls, name, unit, c, sim.walls.len());
+        }
+    });
+    result.clone()?;
+    let solids = file.create_group("solids").ctx("cannot create /solids")?;
+    write_attr(&solids, "particles", &(sim.solids.len() as u64))?;
+    sim.solids.for_each_column(|name, unit, c| {
+        if result.is_ok() {
+            result = write_column(&solids, name, unit, c, sim.solids.len());
         }
     });
     result
@@ -498,7 +511,7 @@ fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck
     writeln!(s, "step:       {}", st.step)?;
     writeln!(s, "dt:         {} s", st.dt)?;
     writeln!(s, "scene:      {}", st.scene.origin)?;
-    writeln!(s, "particles:  {} fluid, {} wall", st.fluid.len(), st.walls.len())?;
+    writeln!(s, "particles:  {} fluid, {} wall, {} solid", st.fluid.len(), st.walls.len(), st.solids.len())?;
     writeln!(s, "fluid volume per phase (outer; sum of h^3 alpha_k):")?;
     for (p, v) in st.scene.phases.iter().zip(phase_volumes(st)) {
         writeln!(s, "  {:<16} {v:.6e} m^3", p.name)?;
@@ -583,6 +596,7 @@ impl<'a> Reader<'a> {
         let dt: f32 = attr(file, "dt")?;
         let nf = count(attr::<u64>(file, "fluid_particles")?)?;
         let nw = count(attr::<u64>(file, "wall_particles")?)?;
+        let ns = count(attr::<u64>(file, "solid_particles")?)?;
         let failure = attr_string(file, "failure")?;
 
         let scene_ds = open_dataset(file, "scene")?;
@@ -647,12 +661,25 @@ impl<'a> Reader<'a> {
                 result = self.read_column(&g, name, unit, c, nw, phases);
             }
         });
+        result.clone()?;
+        check_no_unknown(&g, &known)?;
+
+        let mut solids = SolidStore::default();
+        let g = group(file, "solids")?;
+        self.check_count(&g, ns)?;
+        known.clear();
+        solids.for_each_column_mut(|name, unit, c| {
+            known.push(name);
+            if result.is_ok() {
+                result = self.read_column(&g, name, unit, c, ns, phases);
+            }
+        });
         result?;
         check_no_unknown(&g, &known)?;
 
         Ok(Checkpoint {
             format_version: version,
-            state: SavedState { scene, fluid, walls, time, step, dt },
+            state: SavedState { scene, fluid, walls, solids, time, step, dt },
             run,
             failure: (!failure.is_empty()).then_some(failure),
         })

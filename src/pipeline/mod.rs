@@ -4,17 +4,20 @@
 
 mod restore;
 mod setup;
+pub mod solid;
 mod step;
 pub mod timing;
 
 pub use restore::SavedState;
+pub use solid::{Peer2018, SolidModel, SolidStats};
 pub use step::StepError;
 pub use timing::{PassTimes, PASSES};
 
 use crate::scene::Scene;
-use crate::store::{FluidStore, Scratch, WallStore};
+use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::elasticity::Lame;
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::neighbors::PairLists;
 
@@ -54,6 +57,12 @@ pub struct Params {
     /// Phase pressures p_k = alphahat_k p rather than the default shared
     /// p_k = p (`simulation.phase_pressure`).
     pub fraction_pressure: bool,
+    /// Lamé parameters of each solid body (`[[solid]]` order), Pa.
+    pub solid_lame: Vec<Lame>,
+    /// Relative residual of the elastic conjugate gradients.
+    pub elastic_tolerance: f32,
+    /// Largest number of elastic conjugate-gradient iterations.
+    pub elastic_max_iterations: u32,
 }
 
 /// What one step did.
@@ -69,6 +78,10 @@ pub struct StepStats {
     pub max_speed: f32,
     /// Largest drift speed max_k |u_mk| of the step, m/s (0 for one phase).
     pub max_drift_speed: f32,
+    /// Conjugate-gradient iterations of the elastic solve (0 without solids).
+    pub cg_iterations: u32,
+    /// Relative residual |r|/|b| after the elastic solve.
+    pub cg_residual: f32,
     /// Milliseconds per pass.
     pub times: PassTimes,
 }
@@ -100,6 +113,22 @@ struct Workspace {
     /// Per phase, per block of fluid-fluid pairs: the pair fluxes of the
     /// conservative transport (kept for its capacity).
     pair_flux: Vec<Vec<Vec<f32>>>,
+    /// Solid Morton keys (sorted after the sort).
+    solid_keys: Vec<u64>,
+    solid_sort: Vec<(u64, u32)>,
+    /// Sorted solid index -> store index.
+    solid_perm: Vec<u32>,
+    /// Solid positions in sorted order.
+    solid_sorted: [Vec<f32>; 3],
+    solid_grid: CellGrid,
+    /// Fluid-solid pairs (solid targets in sorted order).
+    fs: PairLists,
+    /// Solid-fluid pairs (solid queries in sorted order).
+    sf: PairLists,
+    /// Solid-solid pairs, current (sorted order).
+    ss: PairLists,
+    /// 0..number of solids (the identity row map of the solid rows).
+    solid_rows: Vec<u32>,
 }
 
 /// A running simulation: state, time, and what it needs to step.
@@ -108,6 +137,9 @@ pub struct Simulation {
     pub params: Params,
     pub fluid: FluidStore,
     pub walls: WallStore,
+    pub solids: SolidStore,
+    /// How the solids deform.
+    pub solid_model: Box<dyn SolidModel>,
     /// Simulated time, s.
     pub time: f64,
     /// Steps taken.
@@ -127,6 +159,11 @@ impl Simulation {
         let w = &self.work;
         let bytes = self.fluid.bytes()
             + self.walls.bytes()
+            + self.solids.bytes()
+            + self.solid_model.bytes()
+            + w.fs.bytes()
+            + w.sf.bytes()
+            + w.ss.bytes()
             + w.ff.bytes()
             + w.fb.bytes()
             + w.bf.bytes()

@@ -1,5 +1,5 @@
 //! Rebuilding a [`Simulation`] from saved state (a checkpoint): the scene,
-//! both particle stores, time, step and dt. Everything else a step needs is
+//! the particle stores, time, step and dt. Everything else a step needs is
 //! either derived from the scene (the parameters) or rebuilt the way
 //! [`Simulation::new`] builds it (the wall grid), so the restored simulation
 //! steps bit for bit like the one that was saved.
@@ -7,7 +7,7 @@
 use super::setup::wall_workspace;
 use super::{Params, Simulation, StepStats};
 use crate::scene::Scene;
-use crate::store::{Column, FluidStore, WallStore};
+use crate::store::{Column, FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 
 /// The persistent state of a simulation, as a checkpoint holds it.
@@ -16,6 +16,7 @@ pub struct SavedState {
     pub scene: Scene,
     pub fluid: FluidStore,
     pub walls: WallStore,
+    pub solids: SolidStore,
     /// Simulated time, s.
     pub time: f64,
     /// Steps taken.
@@ -32,10 +33,14 @@ impl Simulation {
     /// store's particle count, one alpha column per scene phase, a finite
     /// time and a positive finite dt) and says what is not.
     pub fn from_saved_state(state: SavedState) -> Result<Simulation, String> {
-        let SavedState { scene, fluid, mut walls, time, step, dt } = state;
+        let SavedState { scene, fluid, mut walls, solids, time, step, dt } = state;
         let phases = scene.phases.len();
         check_columns("fluid", fluid.len(), |f| fluid.for_each_column(f), phases)?;
         check_columns("walls", walls.len(), |f| walls.for_each_column(f), phases)?;
+        check_columns("solids", solids.len(), |f| solids.for_each_column(f), phases)?;
+        if let Some(&b) = solids.body.iter().find(|&&b| b as usize >= scene.solids.len()) {
+            return Err(format!("solids/body holds body {b}, but the scene has {} solids", scene.solids.len()));
+        }
         if fluid.alpha.len() != phases {
             return Err(format!("fluid alpha has {} phases but the scene has {phases}", fluid.alpha.len()));
         }
@@ -47,11 +52,14 @@ impl Simulation {
         }
         let params = Params::from_scene(&scene);
         let work = wall_workspace(&mut walls, &params);
+        let solid_model = params.solid_model(&solids);
         Ok(Simulation {
             scene,
             params,
             fluid,
             walls,
+            solids,
+            solid_model,
             time,
             step,
             dt,

@@ -1,12 +1,14 @@
 //! Building a [`Simulation`] from a [`Scene`]: sampling, the static wall
 //! structures, and the initial time step.
 
+use super::solid::{Peer2018, SolidModel};
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::scene::{sample_fluid, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
-use crate::store::{FluidStore, WallStore};
+use crate::scene::{sample_fluid, sample_solids, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
+use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::elasticity::Lame;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
 impl Params {
@@ -35,7 +37,21 @@ impl Params {
             },
             conservative_transport: s.phase_transport == PhaseTransport::Conservative,
             fraction_pressure: s.phase_pressure == PhasePressure::Fraction,
+            solid_lame: scene.solids.iter().map(|b| Lame { mu: b.shear_modulus, lambda: b.lame_lambda }).collect(),
+            elastic_tolerance: s.elastic_tolerance,
+            elastic_max_iterations: s.elastic_max_iterations,
         }
+    }
+
+    /// The solid model of `solids` (PHYSICS.md §3: Peer et al. 2018).
+    pub fn solid_model(&self, solids: &SolidStore) -> Box<dyn SolidModel> {
+        Box::new(Peer2018::new(
+            solids,
+            &self.solid_lame,
+            &self.kernel,
+            self.elastic_tolerance,
+            self.elastic_max_iterations,
+        ))
     }
 
     /// Number of phases K.
@@ -88,6 +104,7 @@ impl Simulation {
         let params = Params::from_scene(&scene);
         let sampled_walls = sample_walls(&scene);
         let sampled_fluid = sample_fluid(&scene, &sampled_walls);
+        let sampled_solids = sample_solids(&scene, &sampled_walls);
         let nf = sampled_fluid.positions.len();
         let nw = sampled_walls.positions.len();
         let k = scene.phases.len();
@@ -118,6 +135,43 @@ impl Simulation {
         walls.density = vec![0.0; nw];
         walls.sigma_static = vec![0.0; nw];
         walls.id = (nf as u32..(nf + nw) as u32).collect();
+
+        // Solids: mass rho_s d^3; pressure-solve rest volumes below.
+        let mut solids = SolidStore::default();
+        let ns = sampled_solids.positions.len();
+        let cell = params.cell_volume();
+        for (i, p) in sampled_solids.positions.iter().enumerate() {
+            let v = sampled_solids.velocities[i];
+            let body = sampled_solids.body[i];
+            for (col, val) in [
+                (&mut solids.x, p[0]),
+                (&mut solids.y, p[1]),
+                (&mut solids.z, p[2]),
+                (&mut solids.x0, p[0]),
+                (&mut solids.y0, p[1]),
+                (&mut solids.z0, p[2]),
+                (&mut solids.vx, v[0]),
+                (&mut solids.vy, v[1]),
+                (&mut solids.vz, v[2]),
+                (&mut solids.mass, scene.solids[body as usize].density * cell),
+                (&mut solids.ppe_volume, cell),
+                (&mut solids.qx, 0.0),
+                (&mut solids.qy, 0.0),
+                (&mut solids.qz, 0.0),
+                (&mut solids.qw, 1.0),
+                (&mut solids.pressure, 0.0),
+                (&mut solids.stress, 0.0),
+                (&mut solids.strain_trace, 0.0),
+            ] {
+                col.push(val);
+            }
+        }
+        solids.body = sampled_solids.body;
+        solids.fixed = sampled_solids.fixed;
+        solids.id = ((nf + nw) as u32..(nf + nw + ns) as u32).collect();
+        solids.ppe_volume =
+            super::solid::pressure_volumes(&solids, &params.kernel, flat_wall_gamma(&params.kernel, params.h));
+        let solid_model = params.solid_model(&solids);
 
         let work = wall_workspace(&mut walls, &params);
         let mut bb = PairLists::default();
@@ -156,6 +210,8 @@ impl Simulation {
             params,
             fluid,
             walls,
+            solids,
+            solid_model,
             time: 0.0,
             step: 0,
             dt: 0.0,

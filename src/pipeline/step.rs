@@ -1,16 +1,20 @@
 //! The step: passes 0-5 and 10-14 of PHYSICS.md §6 for one or more fluid
 //! phases sharing each particle (the mixture model of PHYSICS.md §4.1), and
-//! static walls. With one phase the mixture passes (10-12 and the
-//! correction of 14) are skipped, so the step is the single-fluid step.
+//! static walls, and elastic solids (PHYSICS.md §3, passes 6 and 8). With
+//! one phase the mixture passes (10-12 and the correction of 14) are
+//! skipped, so the step is the single-fluid step; without solids every
+//! solid argument is `None` and the solid passes take no time.
 
+use super::solid::SolidModel;
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::store::{FluidStore, WallStore};
+use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
+use glam::Vec3;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
-use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows, MIN_ALPHA_F};
+use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, SolidPairs, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
 use porosph_kernels::phase_transport;
@@ -47,8 +51,16 @@ impl Simulation {
     /// Advances by one step of length [`Simulation::dt`], then picks the next dt.
     pub fn step(&mut self) -> Result<&StepStats, StepError> {
         let dt = self.dt;
-        let Simulation { params, fluid, walls, work, arena, .. } = self;
-        let mut stats = step_passes(params, fluid, walls, work, arena, dt);
+        // Prescribed velocities of the fixed solid particles for this step.
+        for (i, &b) in self.solids.body.iter().enumerate() {
+            if self.solids.fixed[i] != 0 {
+                let v = self.scene.solids[b as usize].fixed_velocity(self.time);
+                (self.solids.vx[i], self.solids.vy[i], self.solids.vz[i]) = (v[0], v[1], v[2]);
+            }
+        }
+        let Simulation { params, fluid, walls, solids, solid_model, work, arena, .. } = self;
+        let bodies = Bodies { store: solids, model: solid_model.as_mut() };
+        let mut stats = step_passes(params, fluid, walls, bodies, work, arena, dt);
         arena.reset();
         self.time += dt as f64;
         self.step += 1;
@@ -65,10 +77,17 @@ impl Simulation {
         Ok(&self.last)
     }
 
-    /// Largest fluid speed, m/s (NaN if any velocity is NaN).
+    /// Largest fluid or solid speed, m/s (NaN if any velocity is NaN).
     pub fn max_speed(&self) -> f32 {
         let f = &self.fluid;
-        max_f32(f.len(), |i| (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt())
+        let s = &self.solids;
+        let fluid = max_f32(f.len(), |i| (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt());
+        let solid = max_f32(s.len(), |i| (s.vx[i] * s.vx[i] + s.vy[i] * s.vy[i] + s.vz[i] * s.vz[i]).sqrt());
+        if fluid.is_nan() || solid.is_nan() {
+            f32::NAN
+        } else {
+            fluid.max(solid)
+        }
     }
 
     /// The time step rule of PHYSICS.md §7 without porous terms:
@@ -108,6 +127,29 @@ impl Simulation {
     fn blowup(&self, speed: f32) -> StepError {
         let f = &self.fluid;
         let limit = self.blowup_speed();
+        let s = &self.solids;
+        let solid_bad = (0..s.len()).find(|&i| {
+            let v = (s.vx[i] * s.vx[i] + s.vy[i] * s.vy[i] + s.vz[i] * s.vz[i]).sqrt();
+            !v.is_finite() || v > limit || !(s.x[i].is_finite() && s.y[i].is_finite() && s.z[i].is_finite())
+        });
+        let fluid_ok = (0..f.len()).all(|i| {
+            let v = (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt();
+            v.is_finite() && v <= limit && f.x[i].is_finite() && f.y[i].is_finite() && f.z[i].is_finite()
+        });
+        if let (Some(b), true) = (solid_bad, fluid_ok) {
+            return StepError {
+                step: self.step,
+                time: self.time,
+                particle: s.id[b],
+                position: [s.x[b], s.y[b], s.z[b]],
+                velocity: [s.vx[b], s.vy[b], s.vz[b]],
+                reason: if speed.is_finite() {
+                    format!("solid velocity exploded ({speed:.3e} m/s > {limit:.3e} m/s)")
+                } else {
+                    "solid velocity is NaN or infinite".to_string()
+                },
+            };
+        }
         let bad = (0..f.len())
             .find(|&i| {
                 let s = (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt();
@@ -133,11 +175,18 @@ fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
     arena.alloc_slice_fill_copy(n, 0.0f32)
 }
 
+/// The solid particles and their model.
+struct Bodies<'a> {
+    store: &'a mut SolidStore,
+    model: &'a mut dyn SolidModel,
+}
+
 /// Passes 0-13 of one step; scratch comes from `arena`.
 fn step_passes(
     p: &Params,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
+    bodies: Bodies,
     w: &mut Workspace,
     arena: &Bump,
     dt: f32,
@@ -146,6 +195,8 @@ fn step_passes(
     let tm = &mut st.times;
     let n = fluid.len();
     let support = p.kernel.support;
+    let Bodies { store: solids, model: solid_model } = bodies;
+    let ns = solids.len();
 
     // Pass 0: Morton sort of the fluid, grid, neighbour pairs.
     tm.time(pass::NEIGHBORS, || {
@@ -185,7 +236,11 @@ fn step_passes(
     tm.time(pass::NEIGHBORS, || {
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
+        if ns > 0 {
+            solid_neighbors(p, fluid, solids, w);
+        }
     });
+    let fs_pairs = (ns > 0).then_some(&w.fs);
 
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
     // mu_m = sum_k alpha_k mu_k, alpha_f = sum_k alpha_k; m = rho_fm h^3 and
@@ -228,8 +283,19 @@ fn step_passes(
     let sigma_b = zeros(arena, na);
     let vol_b = zeros(arena, na);
     let vol_b_full = zeros(arena, walls.len());
+    // Solid rows, in the sorted order of the workspace: rest volumes,
+    // sigma_s = sum V0 W over solids (current) and fluid, volumes.
+    let v0_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.ppe_volume[i as usize]));
+    let sigma_s = zeros(arena, ns);
+    let vol_s = zeros(arena, ns);
     tm.time(pass::DENSITIES, || {
-        iisph::fluid_volumes(&w.ff, &w.fb, v0, &walls.rest_volume, sigma, vol);
+        let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: v0_s });
+        iisph::fluid_volumes(&w.ff, &w.fb, fs, v0, &walls.rest_volume, sigma, vol);
+        if ns > 0 {
+            let sigma_ss = zeros(arena, ns);
+            iisph::kernel_sums(&w.ss, v0_s, sigma_ss);
+            iisph::wall_volumes(&w.sf, &w.solid_rows, sigma_ss, v0_s, v0, sigma_s, vol_s);
+        }
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, v0, sigma_b, vol_b);
         // Output density of every wall: its fluid-free value, then the
         // active walls' (no dependence on the last step's active set, which
@@ -287,11 +353,80 @@ fn step_passes(
     let src_b = zeros(arena, na);
     let diag_b = zeros(arena, na);
     let p_b = zeros(arena, na);
+    // Solid rows: u*_s = v + dt g for free particles (their elastic and
+    // pressure forces come after the solve), the prescribed v for fixed ones.
+    let (usx, usy, usz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    for (k, &i) in w.solid_perm.iter().enumerate() {
+        let i = i as usize;
+        let free = if solids.fixed[i] != 0 { 0.0 } else { dt };
+        usx[k] = solids.vx[i] + free * p.gravity[0];
+        usy[k] = solids.vy[i] + free * p.gravity[1];
+        usz[k] = solids.vz[i] + free * p.gravity[2];
+    }
+    let u_solid = Vel { x: usx, y: usy, z: usz };
+    // Within the pressure solve every solid body moves rigidly: a^p_s =
+    // sum_body F_s / M (strong coupling of the rigid motion, which carries
+    // the fluid's added mass; a body lighter than the fluid is unstable with
+    // per-particle masses, whose surface layer alone would face the fluid).
+    // A body with fixed particles does not move within the solve. The
+    // elastic solve then takes the per-particle forces F_s.
+    let nbodies = p.solid_lame.len();
+    let body_inv_mass = arena.alloc_slice_fill_copy(nbodies, 0.0f32);
+    {
+        let mass = arena.alloc_slice_fill_copy(nbodies, 0.0f64);
+        let anchored = arena.alloc_slice_fill_copy(nbodies, false);
+        for i in 0..ns {
+            let b = solids.body[i] as usize;
+            mass[b] += f64::from(solids.mass[i]);
+            anchored[b] |= solids.fixed[i] != 0;
+        }
+        for b in 0..nbodies {
+            body_inv_mass[b] = if anchored[b] || mass[b] <= 0.0 { 0.0 } else { (1.0 / mass[b]) as f32 };
+        }
+    }
+    let body_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.body[i as usize]));
+    let inv_mass_s = arena.alloc_slice_fill_iter(body_s.iter().map(|&b| body_inv_mass[b as usize]));
+    let body_force = arena.alloc_slice_fill_copy(3 * nbodies, 0.0f64);
+    let (asx, asy, asz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    let src_s = zeros(arena, ns);
+    let diag_s = zeros(arena, ns);
+    let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
     tm.time(pass::PPE_SETUP, || {
-        let rows = FluidRows { u_star, vol, vm, alpha_f, sigma, vol_wall: vol_b_full };
-        iisph::fluid_setup(&mut w.ff, &mut w.fb, rows, dt, src, diag);
-        let rows = WallRows { vol: vol_b, sigma: sigma_b, u_star, vm_fluid: vm, vol_fluid: vol };
+        let rows = FluidRows {
+            u_star,
+            vol,
+            vm,
+            alpha_f,
+            sigma,
+            vol_wall: vol_b_full,
+            vol_solid: vol_s,
+            u_solid,
+            inv_mass_solid: inv_mass_s,
+        };
+        let fs = if ns > 0 { Some(&mut w.fs) } else { None };
+        iisph::fluid_setup(&mut w.ff, &mut w.fb, fs, rows, dt, src, diag);
+        let rows = WallRows {
+            vol: vol_b,
+            sigma: sigma_b,
+            u_star,
+            vm_fluid: vm,
+            vol_fluid: vol,
+            u_own: None,
+            inv_mass_own: None,
+        };
         iisph::wall_setup(&mut w.bf, rows, dt, src_b, diag_b);
+        if ns > 0 {
+            let rows = WallRows {
+                vol: vol_s,
+                sigma: sigma_s,
+                u_star,
+                vm_fluid: vm,
+                vol_fluid: vol,
+                u_own: Some(u_solid),
+                inv_mass_own: Some(inv_mass_s),
+            };
+            iisph::wall_setup(&mut w.sf, rows, dt, src_s, diag_s);
+        }
         // Warm start from half the last pressure (PHYSICS.md §2.2).
         fluid.pressure.par_iter_mut().for_each(|x| *x *= 0.5);
         for (k, &b) in w.active.iter().enumerate() {
@@ -311,15 +446,28 @@ fn step_passes(
     let err = zeros(arena, n);
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (diag[i] != 0.0) as u32 as f64).max(1.0);
+    let fs_pairs = (ns > 0).then_some(&w.fs);
     tm.time(pass::PRESSURE_SOLVE, || {
         let mut it = 0;
         loop {
             let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
-            iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
+            let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
+            iisph::pressure_acceleration(&w.ff, &w.fb, fs, vm, &fluid.pressure, &walls.pressure, out);
+            if ns > 0 {
+                let out = VelMut { x: &mut *asx, y: &mut *asy, z: &mut *asz };
+                let bodies = BodyMotion { body: body_s, inv_mass: body_inv_mass, sums: &mut *body_force };
+                rigid_pressure_acceleration(&w.sf, p_s, &fluid.pressure, vol, bodies, out);
+            }
             let ap = Vel { x: apx, y: apy, z: apz };
+            let a_s = Vel { x: asx, y: asy, z: asz };
             let jac = Jacobi { dt, omega: p.omega };
-            iisph::fluid_jacobi(&w.ff, &w.fb, ap, Rows { source: src, diag }, jac, &mut fluid.pressure, err);
-            iisph::wall_jacobi(&w.bf, ap, Rows { source: src_b, diag: diag_b }, jac, p_b);
+            let rows = Rows { source: src, diag };
+            let fs = fs_pairs.map(|pairs| (pairs, a_s));
+            iisph::fluid_jacobi(&w.ff, &w.fb, fs, ap, rows, jac, &mut fluid.pressure, err);
+            iisph::wall_jacobi(&w.bf, ap, None, Rows { source: src_b, diag: diag_b }, jac, p_b);
+            if ns > 0 {
+                iisph::wall_jacobi(&w.sf, ap, Some(a_s), Rows { source: src_s, diag: diag_s }, jac, p_s);
+            }
             for (k, &b) in w.active.iter().enumerate() {
                 walls.pressure[b as usize] = p_b[k];
             }
@@ -332,8 +480,28 @@ fn step_passes(
         }
         st.iterations = it;
         let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
-        iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
+        let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
+        iisph::pressure_acceleration(&w.ff, &w.fb, fs, vm, &fluid.pressure, &walls.pressure, out);
     });
+
+    // Pass 8: the solids, with the fluid's pressure force (the reaction of
+    // the solid terms of a^p) and gravity as external acceleration.
+    if ns > 0 {
+        tm.time(pass::ELASTICITY, || {
+            let (fx, fy, fz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+            iisph::solid_pressure_force(&w.sf, p_s, &fluid.pressure, vol, VelMut { x: fx, y: fy, z: fz });
+            let g = Vec3::from(p.gravity);
+            let a_ext = arena.alloc_slice_fill_copy(ns, g);
+            for (k, &i) in w.solid_perm.iter().enumerate() {
+                let i = i as usize;
+                solids.pressure[i] = p_s[k];
+                a_ext[i] = g + Vec3::new(fx[k], fy[k], fz[k]) / solids.mass[i];
+            }
+            let cg = solid_model.advance(solids, a_ext, None, dt);
+            st.cg_iterations = cg.iterations;
+            st.cg_residual = cg.residual;
+        });
+    }
 
     // Passes 10-12: drift velocities, drift momentum, volume-fraction
     // transport (several phases only; the pair lists now hold
@@ -368,6 +536,14 @@ fn step_passes(
             uz: &mut fluid.uz,
         };
         integrate(s, u_star, Vel { x: apx, y: apy, z: apz }, dt);
+        // Solids: x += dt v^{n+1} (symplectic Euler, PHYSICS.md §3.3).
+        let sv = solids.vx.iter().zip(&solids.vy).zip(&solids.vz);
+        let sx = solids.x.iter_mut().zip(solids.y.iter_mut()).zip(solids.z.iter_mut());
+        for (((x, y), z), ((vx, vy), vz)) in sx.zip(sv) {
+            *x += dt * vx;
+            *y += dt * vy;
+            *z += dt * vz;
+        }
     });
 
     // Pass 14: correction of the volume fractions (several phases only).
@@ -518,4 +694,73 @@ fn phase_vel<'a>(arena: &'a Bump, x: &'a [f32], y: &'a [f32], z: &'a [f32], n: u
         y: arena.alloc_slice_fill_iter(y.chunks(n.max(1))),
         z: arena.alloc_slice_fill_iter(z.chunks(n.max(1))),
     }
+}
+
+/// The bodies of the solid particles (sorted order) within the solve.
+struct BodyMotion<'a> {
+    /// Body of each solid particle.
+    body: &'a [u32],
+    /// 1/M of each body (0 if it has fixed particles).
+    inv_mass: &'a [f32],
+    /// Scratch: 3 per body.
+    sums: &'a mut [f64],
+}
+
+/// The rigid pressure acceleration of the bodies within the solve:
+/// a^p_s = (sum over the body of F_s) / M for every particle s of a body,
+/// F_s from [`iisph::solid_pressure_force`] (summed in f64 in particle
+/// order: deterministic).
+fn rigid_pressure_acceleration(
+    sf: &porosph_kernels::neighbors::PairLists,
+    p_s: &[f32],
+    p_f: &[f32],
+    vol_f: &[f32],
+    bodies: BodyMotion,
+    out: VelMut,
+) {
+    let VelMut { x, y, z } = out;
+    iisph::solid_pressure_force(sf, p_s, p_f, vol_f, VelMut { x: &mut *x, y: &mut *y, z: &mut *z });
+    let BodyMotion { body, inv_mass, sums } = bodies;
+    sums.iter_mut().for_each(|s| *s = 0.0);
+    for (k, &b) in body.iter().enumerate() {
+        let b = 3 * b as usize;
+        sums[b] += f64::from(x[k]);
+        sums[b + 1] += f64::from(y[k]);
+        sums[b + 2] += f64::from(z[k]);
+    }
+    for (k, &b) in body.iter().enumerate() {
+        let m = inv_mass[b as usize];
+        let b = 3 * b as usize;
+        x[k] = (sums[b] * f64::from(m)) as f32;
+        y[k] = (sums[b + 1] * f64::from(m)) as f32;
+        z[k] = (sums[b + 2] * f64::from(m)) as f32;
+    }
+}
+
+/// Pass 0 for solids: Morton order of the solid positions (a sorted copy; the
+/// store keeps its order), the solid grid, and the fluid-solid, solid-fluid
+/// and solid-solid pairs (solids in the sorted order).
+fn solid_neighbors(p: &Params, fluid: &FluidStore, solids: &SolidStore, w: &mut Workspace) {
+    let ns = solids.len();
+    let support = p.kernel.support;
+    w.solid_keys.resize(ns, 0);
+    compute_keys(&solids.x, &solids.y, &solids.z, 1.0 / support, &mut w.solid_keys);
+    sort_permutation(&w.solid_keys, &mut w.solid_sort, &mut w.solid_perm);
+    w.solid_keys.clear();
+    w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));
+    w.solid_grid.build(&w.solid_keys, support);
+    for (dst, src) in w.solid_sorted.iter_mut().zip([&solids.x, &solids.y, &solids.z]) {
+        dst.clear();
+        dst.extend(w.solid_perm.iter().map(|&i| src[i as usize]));
+    }
+    if w.solid_rows.len() != ns {
+        w.solid_rows.clear();
+        w.solid_rows.extend(0..ns as u32);
+    }
+    let [sx, sy, sz] = &w.solid_sorted;
+    let sp = Points { x: sx, y: sy, z: sz };
+    let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+    build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
+    build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
+    build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
 }

@@ -6,17 +6,20 @@ use std::time::Instant;
 /// The passes of a step, in order, with their PHYSICS.md §6 numbers:
 /// 0 neighbour search (incl. Morton sort and reorder), 1 phase bookkeeping,
 /// 2 densities and volumes (4a-b), 3 viscosity and u*, 4c sources and
-/// diagonal, 5 the IISPH Jacobi loop, 10 drift velocities, 11 the drift
+/// diagonal, 5 the IISPH Jacobi loop, 6 and 8 the elastic solids
+/// (deformation, stress, conjugate gradients; 0 ms without solids),
+/// 10 drift velocities, 11 the drift
 /// momentum term, 12 volume-fraction transport, 13 integration, 14 the
 /// volume-fraction correction and 14 the next time step (CFL). Passes 10,
 /// 11, 12 and the correction run only with two or more phases (0 ms else).
-pub const PASSES: [&str; 12] = [
+pub const PASSES: [&str; 13] = [
     "neighbors",
     "phases",
     "densities",
     "viscosity",
     "ppe_setup",
     "pressure_solve",
+    "elasticity",
     "drift",
     "drift_momentum",
     "phase_transport",
@@ -33,12 +36,13 @@ pub mod pass {
     pub const VISCOSITY: usize = 3;
     pub const PPE_SETUP: usize = 4;
     pub const PRESSURE_SOLVE: usize = 5;
-    pub const DRIFT: usize = 6;
-    pub const DRIFT_MOMENTUM: usize = 7;
-    pub const PHASE_TRANSPORT: usize = 8;
-    pub const INTEGRATE: usize = 9;
-    pub const PHASE_CORRECTION: usize = 10;
-    pub const TIME_STEP: usize = 11;
+    pub const ELASTICITY: usize = 6;
+    pub const DRIFT: usize = 7;
+    pub const DRIFT_MOMENTUM: usize = 8;
+    pub const PHASE_TRANSPORT: usize = 9;
+    pub const INTEGRATE: usize = 10;
+    pub const PHASE_CORRECTION: usize = 11;
+    pub const TIME_STEP: usize = 12;
 }
 
 /// Wall-clock milliseconds per pass of one step.

@@ -10,33 +10,49 @@ pub mod kind {
     pub const WALL: u8 = 2;
 }
 
+/// Display colour of solid particles (linear RGB), until saturation colours
+/// them (the porous issue).
+const SOLID_COLOR: [f32; 3] = [0.80, 0.62, 0.38];
+
 fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArray {
     PointArray { name: name.to_string(), unit: unit.to_string(), components, data }
 }
 
 impl Simulation {
-    /// The current state as a frame: fluid particles first, then walls.
+    /// The current state as a frame: fluid particles first, then walls,
+    /// then solids. Solid particles carry `stress` (von Mises, Pa) and
+    /// `strain_trace`; those are 0 on fluid and walls. Solids have the
+    /// density of their body.
     pub fn frame(&self) -> Frame {
-        let (f, w) = (&self.fluid, &self.walls);
-        let (nf, nw) = (f.len(), w.len());
-        let mut points = Vec::with_capacity(nf + nw);
+        let (f, w, s) = (&self.fluid, &self.walls, &self.solids);
+        let (nf, nw, ns) = (f.len(), w.len(), s.len());
+        let total = nf + nw + ns;
+        let mut points = Vec::with_capacity(total);
         points.extend((0..nf).map(|i| [f.x[i], f.y[i], f.z[i]]));
         points.extend((0..nw).map(|i| [w.x[i], w.y[i], w.z[i]]));
-        let mut velocity = Vec::with_capacity(3 * (nf + nw));
+        points.extend((0..ns).map(|i| [s.x[i], s.y[i], s.z[i]]));
+        let mut velocity = Vec::with_capacity(3 * total);
         for i in 0..nf {
             velocity.extend([f.ux[i], f.uy[i], f.uz[i]]);
         }
         velocity.resize(3 * (nf + nw), 0.0);
-        let cat = |a: &[f32], b: &[f32]| -> Vec<f32> { a.iter().chain(b).copied().collect() };
+        for i in 0..ns {
+            velocity.extend([s.vx[i], s.vy[i], s.vz[i]]);
+        }
+        let solid_density: Vec<f32> =
+            s.body.iter().map(|&b| self.scene.solids.get(b as usize).map_or(0.0, |b| b.density)).collect();
+        let cat = |a: &[f32], b: &[f32], c: &[f32]| -> Vec<f32> { a.iter().chain(b).chain(c).copied().collect() };
+        let zero_fw = vec![0.0f32; nf + nw];
         let mut kinds = vec![kind::FLUID; nf];
         kinds.resize(nf + nw, kind::WALL);
+        kinds.resize(total, kind::SOLID);
         let k = f.alpha.len();
-        let mut alpha = Vec::with_capacity(k * (nf + nw));
+        let mut alpha = Vec::with_capacity(k * total);
         for i in 0..nf {
             alpha.extend(f.alpha.iter().map(|a| a[i]));
         }
-        alpha.resize(k * (nf + nw), 0.0);
-        let mut color = Vec::with_capacity(3 * (nf + nw));
+        alpha.resize(k * total, 0.0);
+        let mut color = Vec::with_capacity(3 * total);
         for i in 0..nf {
             let mut c = [0.0f32; 3];
             for (ph, a) in self.scene.phases.iter().zip(&f.alpha) {
@@ -49,18 +65,23 @@ impl Simulation {
         for _ in 0..nw {
             color.extend([0.6, 0.6, 0.6]);
         }
+        for _ in 0..ns {
+            color.extend(SOLID_COLOR);
+        }
         Frame {
             time: self.time,
             step: self.step,
             points,
             arrays: vec![
                 array("velocity", "m/s", 3, ArrayData::F32(velocity)),
-                array("pressure", "Pa", 1, ArrayData::F32(cat(&f.pressure, &w.pressure))),
-                array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density))),
+                array("pressure", "Pa", 1, ArrayData::F32(cat(&f.pressure, &w.pressure, &s.pressure))),
+                array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density, &solid_density))),
+                array("stress", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.stress, &[]))),
+                array("strain_trace", "", 1, ArrayData::F32(cat(&zero_fw, &s.strain_trace, &[]))),
                 array("alpha", "", k, ArrayData::F32(alpha)),
                 array("color", "", 3, ArrayData::F32(color)),
                 array("kind", "", 1, ArrayData::U8(kinds)),
-                array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).copied().collect())),
+                array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).chain(&s.id).copied().collect())),
             ],
         }
     }

@@ -135,11 +135,21 @@ impl From<IoError> for RunError {
 /// (m^3, [`Simulation::phase_volumes`]) per phase in scene order, and
 /// `ms_<pass>` per pass.
 pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
-    let mut c: Vec<String> =
-        ["step", "time", "dt", "iterations", "density_error", "max_speed", "max_drift_speed", "fluid_particles"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect();
+    let mut c: Vec<String> = [
+        "step",
+        "time",
+        "dt",
+        "iterations",
+        "density_error",
+        "max_speed",
+        "max_drift_speed",
+        "cg_iterations",
+        "cg_residual",
+        "fluid_particles",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
     c.extend(phases.iter().map(|p| format!("volume_{}", p.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
@@ -253,6 +263,8 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.density_error as f64,
             st.max_speed as f64,
             st.max_drift_speed as f64,
+            st.cg_iterations as f64,
+            st.cg_residual as f64,
             n,
         ];
         row.extend(sim.phase_volumes());

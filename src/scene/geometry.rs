@@ -27,6 +27,19 @@ pub struct SampledFluid {
     pub fractions: Vec<Vec<f32>>,
 }
 
+/// Solid particles sampled from all `[[solid]]` entries.
+#[derive(Clone, Debug, Default)]
+pub struct SampledSolids {
+    /// Positions, m.
+    pub positions: Vec<[f32; 3]>,
+    /// Velocities, m/s.
+    pub velocities: Vec<[f32; 3]>,
+    /// Index of the `[[solid]]` entry of each particle.
+    pub body: Vec<u32>,
+    /// 1 for particles inside the solid's `fixed` shape.
+    pub fixed: Vec<u32>,
+}
+
 /// Static wall particles sampled from all `[[wall]]` entries.
 #[derive(Clone, Debug, Default)]
 pub struct SampledWalls {
@@ -44,8 +57,13 @@ pub struct SampledWalls {
 /// lies inside a solid (non-container) wall shape, whose core holds no wall
 /// particles but is not fluid either. Velocity and phase fractions come from
 /// the block.
+///
+/// Fluid is also kept out of solids: a point inside a `[[solid]]` shape, or
+/// closer than 3/4 d to a solid particle, is dropped (solids sampled on a
+/// box lattice of their own may be offset from the fluid's).
 pub fn sample_fluid(scene: &Scene, walls: &SampledWalls) -> SampledFluid {
     let mut out = SampledFluid::default();
+    let solid_particles = sample_solids(scene, walls);
     let Some(d) = spacing(scene) else {
         return out;
     };
@@ -55,6 +73,12 @@ pub fn sample_fluid(scene: &Scene, walls: &SampledWalls) -> SampledFluid {
         grid.insert(p);
     }
     let solids: Vec<&Wall> = scene.walls.iter().filter(|w| !w.container).collect();
+    let mut solid_grid = PointGrid::new(d);
+    for &p in &solid_particles.positions {
+        solid_grid.insert(p);
+    }
+    let in_solid =
+        |p: [f32; 3]| scene.solids.iter().any(|s| sdf(&s.shape, p) <= 0.0) || solid_grid.any_within(p, 0.75 * d);
     for block in &scene.fluids {
         let mut candidates = Vec::new();
         match &block.shape {
@@ -62,13 +86,49 @@ pub fn sample_fluid(scene: &Scene, walls: &SampledWalls) -> SampledFluid {
             shape => global_lattice(shape, d, &mut candidates, |s| s <= 0.0),
         }
         for p in candidates {
-            if solids.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) {
+            if solids.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) || in_solid(p) {
                 continue;
             }
             grid.insert(p);
             out.positions.push(p);
             out.velocities.push(block.velocity);
             out.fractions.push(block.fractions.clone());
+        }
+    }
+    out
+}
+
+/// Samples the solids of a scene, body by body in file order, each in lattice
+/// order, like fluid blocks: a box on its own lattice, a sphere or cylinder
+/// on the global one. A point closer than d / 2 to a wall particle or to a
+/// particle of an earlier solid, or inside a solid (non-container) wall
+/// shape, is dropped. Particles inside the body's `fixed` shape are marked.
+pub fn sample_solids(scene: &Scene, walls: &SampledWalls) -> SampledSolids {
+    let mut out = SampledSolids::default();
+    let Some(d) = spacing(scene) else {
+        return out;
+    };
+    let min_dist = 0.5 * d;
+    let mut grid = PointGrid::new(d);
+    for &p in &walls.positions {
+        grid.insert(p);
+    }
+    let obstacles: Vec<&Wall> = scene.walls.iter().filter(|w| !w.container).collect();
+    for (b, solid) in scene.solids.iter().enumerate() {
+        let mut candidates = Vec::new();
+        match &solid.shape {
+            Shape::Box { min, max } => box_lattice(min, max, d, None, &mut candidates),
+            shape => global_lattice(shape, d, &mut candidates, |s| s <= 0.0),
+        }
+        for p in candidates {
+            if obstacles.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) {
+                continue;
+            }
+            grid.insert(p);
+            out.positions.push(p);
+            out.velocities.push(solid.velocity);
+            out.body.push(b as u32);
+            out.fixed.push(solid.fixed.as_ref().is_some_and(|f| sdf(f, p) <= 0.0) as u32);
         }
     }
     out

@@ -9,7 +9,7 @@
 mod geometry;
 mod parse;
 
-pub use geometry::{sample_fluid, sample_walls, sdf, SampledFluid, SampledWalls};
+pub use geometry::{sample_fluid, sample_solids, sample_walls, sdf, SampledFluid, SampledSolids, SampledWalls};
 
 use std::fmt;
 
@@ -24,6 +24,8 @@ pub struct Scene {
     pub fluids: Vec<FluidBlock>,
     /// `[[wall]]` entries: static boundary particles.
     pub walls: Vec<Wall>,
+    /// `[[solid]]` entries: elastic solid bodies.
+    pub solids: Vec<Solid>,
     /// Where the scene came from (a path, or `<built-in NAME>`), for messages.
     pub origin: String,
     /// The scene text exactly as read (checkpoints store it).
@@ -69,6 +71,13 @@ pub struct Simulation {
     pub phase_transport: PhaseTransport,
     /// The phase pressures p_k of the drift velocities (P-Eq. 11).
     pub phase_pressure: PhasePressure,
+    /// Relative residual |r| / |b| at which the conjugate gradients of the
+    /// elastic solve stop (default 1e-4, PHYSICS.md §3.3).
+    pub elastic_tolerance: f32,
+    /// Largest number of conjugate-gradient iterations (default 1000: the
+    /// unpreconditioned CG needs about 4 (c dt / d) iterations, c the
+    /// speed of sound of the solid, so stiff solids need many).
+    pub elastic_max_iterations: u32,
 }
 
 /// `phase_pressure`: the phase pressure p_k in P-Eq. 11
@@ -163,6 +172,46 @@ pub struct Wall {
     pub container: bool,
     /// With `container = true`: leave the top (+y) face open.
     pub open_top: bool,
+}
+
+/// `[[solid]]`: an elastic solid body (PHYSICS.md §3), sampled on the
+/// lattice like a fluid block.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solid {
+    pub name: String,
+    pub shape: Shape,
+    /// Density, kg/m^3 (particle mass = density d^3).
+    pub density: f32,
+    /// Shear modulus mu, Pa (the paper's "nu", PHYSICS.md §8.6).
+    pub shear_modulus: f32,
+    /// Lame's first parameter lambda, Pa.
+    pub lame_lambda: f32,
+    /// Initial velocity, m/s (default 0).
+    pub velocity: [f32; 3],
+    /// `fixed = { box = .. }`: particles inside this shape are kinematic:
+    /// they move with [`Solid::motion`] (at rest outside its intervals).
+    pub fixed: Option<Shape>,
+    /// `motion = [{ from, until, velocity }, ..]`: the velocity of the fixed
+    /// particles over time intervals [from, until) s.
+    pub motion: Vec<Motion>,
+}
+
+/// One interval of prescribed motion of a solid's fixed particles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion {
+    /// Start time, s.
+    pub from: f64,
+    /// End time, s (exclusive).
+    pub until: f64,
+    /// Velocity, m/s.
+    pub velocity: [f32; 3],
+}
+
+impl Solid {
+    /// The velocity of the fixed particles at time `t`, m/s.
+    pub fn fixed_velocity(&self, t: f64) -> [f32; 3] {
+        self.motion.iter().find(|m| m.from <= t && t < m.until).map_or([0.0; 3], |m| m.velocity)
+    }
 }
 
 /// A scene problem: which file, which key, and why.

@@ -7,7 +7,8 @@
 //! finiteness (TOML allows `nan` and `inf`) and range before it is used.
 
 use super::{
-    DriftMomentum, FluidBlock, Phase, PhasePressure, PhaseTransport, Scene, SceneError, Shape, Simulation, Wall,
+    DriftMomentum, FluidBlock, Motion, Phase, PhasePressure, PhaseTransport, Scene, SceneError, Shape, Simulation,
+    Solid, Wall,
 };
 use std::path::Path;
 use toml::{Table, Value};
@@ -37,7 +38,7 @@ const MAX_LATTICE_CELLS: f64 = 1e9;
 const MAX_COORD_SPACINGS: f64 = 1e6;
 
 /// Keys allowed at the top level.
-const TOP_KEYS: &[&str] = &["simulation", "phase", "fluid", "wall"];
+const TOP_KEYS: &[&str] = &["simulation", "phase", "fluid", "wall", "solid"];
 const SIMULATION_KEYS: &[&str] = &[
     "particle_spacing",
     "end_time",
@@ -54,6 +55,8 @@ const SIMULATION_KEYS: &[&str] = &[
     "drift_momentum",
     "phase_transport",
     "phase_pressure",
+    "elastic_tolerance",
+    "elastic_max_iterations",
 ];
 const PHASE_KEYS: &[&str] = &["name", "density", "viscosity", "color", "drift_tau", "drift_sigma"];
 
@@ -74,6 +77,10 @@ const PHASE_PRESSURE_VALUES: &[(&str, PhasePressure)] =
 const SHAPE_KEYS: &[&str] = &["box", "sphere", "cylinder"];
 const FLUID_KEYS: &[&str] = &["box", "sphere", "cylinder", "fractions", "velocity"];
 const WALL_KEYS: &[&str] = &["box", "sphere", "cylinder", "container", "open_top"];
+const SOLID_KEYS: &[&str] =
+    &["name", "box", "sphere", "cylinder", "density", "shear_modulus", "lame_lambda", "velocity", "fixed", "motion"];
+const FIXED_KEYS: &[&str] = &["box", "sphere", "cylinder"];
+const MOTION_KEYS: &[&str] = &["from", "until", "velocity"];
 const BOX_KEYS: &[&str] = &["min", "max"];
 const SPHERE_KEYS: &[&str] = &["center", "radius"];
 const CYLINDER_KEYS: &[&str] = &["base", "axis", "radius", "height"];
@@ -147,7 +154,22 @@ impl Scene {
             }
         }
 
-        Ok(Scene { simulation, phases, fluids, walls, origin: origin.to_string(), text: text.to_string() })
+        let mut solids: Vec<Solid> = Vec::new();
+        if let Some(v) = root.get("solid") {
+            for (i, tbl) in cx.array_of_tables("solid", v)?.iter().enumerate() {
+                let path = format!("solid[{i}]");
+                let solid = cx.solid(&path, tbl, d)?;
+                if let Some(j) = solids.iter().position(|s| s.name == solid.name) {
+                    return Err(cx.err(
+                        &join(&path, "name"),
+                        format!("duplicate solid name \"{}\": solid[{j}] already uses it", solid.name),
+                    ));
+                }
+                solids.push(solid);
+            }
+        }
+
+        Ok(Scene { simulation, phases, fluids, walls, solids, origin: origin.to_string(), text: text.to_string() })
     }
 }
 
@@ -451,6 +473,25 @@ impl Cx<'_> {
             None => PhasePressure::Shared,
         };
 
+        let elastic_tolerance = match t.get("elastic_tolerance") {
+            Some(v) => self.f32_in(
+                &key("elastic_tolerance"),
+                v,
+                "the relative residual of the elastic solve",
+                Range::UpTo(1.0),
+            )?,
+            None => 1e-4,
+        };
+        let elastic_max_iterations = match t.get("elastic_max_iterations") {
+            Some(v) => self.integer(
+                &key("elastic_max_iterations"),
+                v,
+                "the largest number of conjugate-gradient iterations",
+                1,
+            )?,
+            None => 1000,
+        };
+
         Ok(Simulation {
             particle_spacing,
             end_time,
@@ -467,6 +508,8 @@ impl Cx<'_> {
             drift_momentum,
             phase_transport,
             phase_pressure,
+            elastic_tolerance,
+            elastic_max_iterations,
         })
     }
 
@@ -595,6 +638,96 @@ impl Cx<'_> {
             ));
         }
         Ok(Wall { shape, container, open_top })
+    }
+
+    /// `[[solid]]`.
+    fn solid(&self, path: &str, t: &Table, d: f64) -> Result<Solid, SceneError> {
+        self.allow_keys(path, t, SOLID_KEYS)?;
+        let key = |k: &str| join(path, k);
+        let name = match self.required(path, t, "name", "the solid's name")? {
+            Value::String(s) if !s.trim().is_empty() => s.clone(),
+            other => {
+                return Err(self.err(&key("name"), format!("expected a non-empty string, found {}", describe(other))))
+            }
+        };
+        let shape = self.shape(path, t, d)?;
+        let what = "the density in kg/m^3";
+        let density = self.f32_in(&key("density"), self.required(path, t, "density", what)?, what, Range::Positive)?;
+        let what = "the shear modulus mu in Pa";
+        let shear_modulus =
+            self.f32_in(&key("shear_modulus"), self.required(path, t, "shear_modulus", what)?, what, Range::Positive)?;
+        let what = "Lame's first parameter lambda in Pa";
+        let lame_lambda =
+            self.f32_in(&key("lame_lambda"), self.required(path, t, "lame_lambda", what)?, what, Range::NonNegative)?;
+        let velocity = match t.get("velocity") {
+            Some(v) => self.vec3(&key("velocity"), v, "the initial velocity in m/s", Range::Any)?,
+            None => [0.0; 3],
+        };
+        let fixed = match t.get("fixed") {
+            Some(v) => {
+                let ft = self.table(&key("fixed"), v)?;
+                self.allow_keys(&key("fixed"), ft, FIXED_KEYS)?;
+                Some(self.shape(&key("fixed"), ft, d)?)
+            }
+            None => None,
+        };
+        let mut motion: Vec<Motion> = Vec::new();
+        if let Some(v) = t.get("motion") {
+            let items = match v {
+                Value::Array(items) => items,
+                other => {
+                    return Err(self.err(
+                        &key("motion"),
+                        format!("expected an array of {{ from, until, velocity }} tables, found {}", describe(other)),
+                    ))
+                }
+            };
+            for (i, item) in items.iter().enumerate() {
+                let mpath = format!("{}[{i}]", key("motion"));
+                let mt = self.table(&mpath, item)?;
+                self.allow_keys(&mpath, mt, MOTION_KEYS)?;
+                let what = "a time in s";
+                let from = self.f64_in(
+                    &join(&mpath, "from"),
+                    self.required(&mpath, mt, "from", what)?,
+                    what,
+                    Range::NonNegative,
+                )?;
+                let until = self.f64_in(
+                    &join(&mpath, "until"),
+                    self.required(&mpath, mt, "until", what)?,
+                    what,
+                    Range::NonNegative,
+                )?;
+                if until <= from {
+                    return Err(
+                        self.err(&join(&mpath, "until"), format!("expected until > from = {from} s, found {until} s"))
+                    );
+                }
+                let what = "the velocity of the fixed particles in m/s";
+                let velocity = self.vec3(
+                    &join(&mpath, "velocity"),
+                    self.required(&mpath, mt, "velocity", what)?,
+                    what,
+                    Range::Any,
+                )?;
+                if let Some(prev) = motion.last() {
+                    if from < prev.until {
+                        return Err(self.err(
+                            &join(&mpath, "from"),
+                            format!("intervals must be in time order without overlap: this one starts at {from} s, before the previous one ends at {} s", prev.until),
+                        ));
+                    }
+                }
+                motion.push(Motion { from, until, velocity });
+            }
+            if fixed.is_none() && !motion.is_empty() {
+                return Err(
+                    self.err(&key("motion"), "motion moves the fixed particles, but the solid has no `fixed` shape")
+                );
+            }
+        }
+        Ok(Solid { name, shape, density, shear_modulus, lame_lambda, velocity, fixed, motion })
     }
 
     /// Exactly one of `box`, `sphere`, `cylinder` in the table at `path`.

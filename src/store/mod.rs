@@ -153,6 +153,60 @@ soa! {
     }
 }
 
+soa! {
+    /// Elastic solid particles (PHYSICS.md §3), in the order they were
+    /// sampled (body by body, lattice order). Solids are not reordered: their
+    /// rest neighbourhoods (SS0) are fixed lists over this order, and the
+    /// pressure solve reads them through a sorted copy (the pipeline's
+    /// workspace).
+    pub struct SolidStore {
+        /// Position x, m.
+        x: Vec<f32> ["m"],
+        /// Position y, m.
+        y: Vec<f32> ["m"],
+        /// Position z, m.
+        z: Vec<f32> ["m"],
+        /// Velocity v, x, m/s.
+        vx: Vec<f32> ["m/s"],
+        /// Velocity v, y, m/s.
+        vy: Vec<f32> ["m/s"],
+        /// Velocity v, z, m/s.
+        vz: Vec<f32> ["m/s"],
+        /// Rest position x0, x, m.
+        x0: Vec<f32> ["m"],
+        /// Rest position x0, y, m.
+        y0: Vec<f32> ["m"],
+        /// Rest position x0, z, m.
+        z0: Vec<f32> ["m"],
+        /// Mass m_s, kg.
+        mass: Vec<f32> ["kg"],
+        /// Rest volume in the pressure solve, V0_s, m^3 (PHYSICS.md §2.3).
+        ppe_volume: Vec<f32> ["m^3"],
+        /// Index of the body (`[[solid]]` entry).
+        body: Vec<u32> [""],
+        /// 1 where the velocity is prescribed (the body's `fixed` shape).
+        fixed: Vec<u32> [""],
+        /// Rotation R_i as a unit quaternion (x), the warm start of the next
+        /// rotation extraction (PHYSICS.md §3.2).
+        qx: Vec<f32> [""],
+        /// Rotation quaternion, y.
+        qy: Vec<f32> [""],
+        /// Rotation quaternion, z.
+        qz: Vec<f32> [""],
+        /// Rotation quaternion, w.
+        qw: Vec<f32> [""],
+        /// Pressure p_s of the pressure boundary, Pa (the next step
+        /// warm-starts from half of it).
+        pressure: Vec<f32> ["Pa"],
+        /// Von Mises stress of the last step, Pa (output only).
+        stress: Vec<f32> ["Pa"],
+        /// tr(eps) of the corotated strain of the last step (output only).
+        strain_trace: Vec<f32> [""],
+        /// Stable particle id (after the fluid and wall ids).
+        id: Vec<u32> [""],
+    }
+}
+
 fn column_bytes(c: &Column) -> usize {
     match c {
         Column::F32(v) => 4 * v.len(),

@@ -71,6 +71,42 @@ pub fn store_bits(fluid: &porosph::store::FluidStore, walls: &porosph::store::Wa
     out
 }
 
+/// Every registered array of a solid store as bit patterns.
+pub fn solid_bits(solids: &porosph::store::SolidStore) -> Vec<(String, Vec<u32>)> {
+    use porosph::store::Column;
+    let mut out = Vec::new();
+    solids.for_each_column(|name, _, c| match c {
+        Column::F32(v) => out.push((format!("solids/{name}"), v.iter().map(|x| x.to_bits()).collect())),
+        Column::U32(v) => out.push((format!("solids/{name}"), v.to_vec())),
+        Column::PerPhase(_) => unreachable!("solids have no per-phase arrays"),
+    });
+    out
+}
+
+/// A small tank with a floating elastic block (fluid, walls and a solid).
+pub const FLOATING_BLOCK: &str = r#"
+[simulation]
+particle_spacing = 0.01
+end_time = 1.0
+max_dt = 0.003
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.01
+[[wall]]
+box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.06] }
+container = true
+[[fluid]]
+box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.12, 0.06] }
+fractions = { water = 1.0 }
+[[solid]]
+name = "block"
+box = { min = [0.06, 0.09, 0.0], max = [0.24, 0.17, 0.06] }
+density = 600.0
+shear_modulus = 1e5
+lame_lambda = 0.0
+"#;
+
 /// Asserts that two states agree bit for bit in every registered array,
 /// naming the first array and index that differ.
 pub fn assert_same_bits(a: &[(String, Vec<u32>)], b: &[(String, Vec<u32>)]) {

@@ -1,0 +1,455 @@
+//! Elastic solids: implicit corotated SPH elasticity of Peer et al. 2018
+//! (PHYSICS.md §3.1-3.3, the paper's P-Eqs. 4-5), pass 8 of PHYSICS.md §6.
+//!
+//! Notation: solid particle i, its rest neighbours j in SS0 (same body,
+//! within the support H in the rest configuration, fixed at t = 0), rest
+//! positions x0, rest volumes V_i0, the gradient correction L_i, the
+//! rotation R_i, RL_i = R_i L_i. Every pair stores w_ij = V_j0 grad W_ij0
+//! (grad W_ij0 = grad_i W(x_i0 - x_j0), pointing from i towards j,
+//! PHYSICS.md §0). With T_i = P_i RL_i, Peer's force
+//! f_i = sum_j V_i0 V_j0 (P_i RL_i grad W_ij0 - P_j RL_j grad W_ji0)
+//! becomes the gather f_i = V_i0 sum_j (T_i + T_j) w_ij.
+//!
+//! Every loop is a gather over particles in store order; the dot products
+//! of the conjugate gradients are blocked f64 sums
+//! ([`crate::blocks::sum_f64`]), so results do not depend on the number of
+//! threads. Scalar code: solids are few next to fluid particles, and a 3x3
+//! matrix per particle does not fit the SIMD pair layout of the fluid.
+
+use crate::blocks::{nblocks, sum_f64, BLOCK};
+use crate::cubic_spline::CubicSpline;
+use glam::{Mat3, Quat, Vec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Lamé parameters of a solid material, Pa. `mu` is the shear modulus, the
+/// paper's "nu" (PHYSICS.md §8.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lame {
+    pub mu: f32,
+    pub lambda: f32,
+}
+
+/// The rest-configuration data of all solid particles (PHYSICS.md §3.1),
+/// computed once from the rest positions.
+#[derive(Clone, Debug, Default)]
+pub struct RestState {
+    /// SS0 as CSR: the neighbours of particle i are `start[i]..start[i+1]`.
+    pub start: Vec<u32>,
+    /// Neighbour index j of each pair (ascending per particle, self excluded).
+    pub j: Vec<u32>,
+    /// w_ij = V_j0 grad W_ij0 of each pair, 1/m.
+    pub w: Vec<Vec3>,
+    /// x_j0 - x_i0 of each pair, m.
+    pub dx0: Vec<Vec3>,
+    /// Rest volume V_i0 = m_i / (m_i W(0) + sum_j m_j W_ij0), m^3.
+    pub volume: Vec<f32>,
+    /// Gradient correction L_i (PHYSICS.md §3.1).
+    pub correction: Vec<Mat3>,
+}
+
+impl RestState {
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.volume.len()
+    }
+
+    /// Whether there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.volume.is_empty()
+    }
+
+    /// The pair range of particle i.
+    #[inline]
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.start[i] as usize..self.start[i + 1] as usize
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
+            + 12 * (self.w.capacity() + self.dx0.capacity())
+            + 36 * self.correction.capacity()
+    }
+
+    /// SS0, rest volumes and corrections (PHYSICS.md §3.1) of particles at
+    /// rest positions `x0` with bodies `body` and masses `mass`. Pairs
+    /// within a body closer than the support H; a deterministic cell grid
+    /// (neighbours sorted by index).
+    pub fn new(x0: &[Vec3], body: &[u32], mass: &[f32], kernel: &CubicSpline) -> RestState {
+        let n = x0.len();
+        let h = kernel.support;
+        let cell =
+            |p: Vec3| -> [i32; 3] { [(p.x / h).floor() as i32, (p.y / h).floor() as i32, (p.z / h).floor() as i32] };
+        let mut grid: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+        for (i, &p) in x0.iter().enumerate() {
+            grid.entry(cell(p)).or_default().push(i as u32);
+        }
+        let neighbors: Vec<Vec<u32>> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let c = cell(x0[i]);
+                let mut out = Vec::new();
+                for dz in -1..=1 {
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            if let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                                for &j in list {
+                                    let j_us = j as usize;
+                                    if j_us != i && body[j_us] == body[i] && (x0[j_us] - x0[i]).length() < h {
+                                        out.push(j);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                out.sort_unstable();
+                out
+            })
+            .collect();
+        let mut start = Vec::with_capacity(n + 1);
+        start.push(0u32);
+        let mut j = Vec::new();
+        for list in &neighbors {
+            j.extend_from_slice(list);
+            start.push(j.len() as u32);
+        }
+        let mut rest = RestState {
+            start,
+            j,
+            w: Vec::new(),
+            dx0: Vec::new(),
+            volume: vec![0.0; n],
+            correction: vec![Mat3::IDENTITY; n],
+        };
+        // V_i0 = m_i / (m_i W(0) + sum_j m_j W_ij0).
+        let volume: Vec<f32> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let s: f32 = rest
+                    .range(i)
+                    .map(|p| mass[rest.j[p] as usize] * kernel.w((x0[i] - x0[rest.j[p] as usize]).length()))
+                    .sum();
+                mass[i] / (mass[i] * kernel.w0() + s)
+            })
+            .collect();
+        let (w, dx0): (Vec<Vec3>, Vec<Vec3>) = (0..rest.j.len())
+            .into_par_iter()
+            .map(|p| {
+                let i = rest.start.partition_point(|&s| s as usize <= p) - 1;
+                let jj = rest.j[p] as usize;
+                let xij = x0[i] - x0[jj];
+                let g = kernel.grad_over_r(xij.length()) * xij;
+                (volume[jj] * g, x0[jj] - x0[i])
+            })
+            .unzip();
+        rest.w = w;
+        rest.dx0 = dx0;
+        rest.volume = volume;
+        // L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1, identity where
+        // the sum is (nearly) singular: a particle with too few neighbours.
+        let correction: Vec<Mat3> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w[p], rest.dx0[p]));
+                if m.determinant().abs() > 1e-9 {
+                    m.inverse()
+                } else {
+                    Mat3::IDENTITY
+                }
+            })
+            .collect();
+        rest.correction = correction;
+        rest
+    }
+}
+
+/// The outer product a (x) b (matrix with entries a_r b_c).
+#[inline(always)]
+pub fn outer(a: Vec3, b: Vec3) -> Mat3 {
+    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// The rotation of `a` by the method of Müller et al. 2016 (PHYSICS.md §3.2),
+/// warm-started from `q`, at most `iterations` times:
+/// omega = sum_c (R_c x A_c) / (|sum_c R_c . A_c| + 1e-9), R <- rot(omega) R,
+/// stopping once the update angle is below 1e-7 rad (f32 resolution).
+pub fn extract_rotation(a: &Mat3, mut q: Quat, iterations: u32) -> Quat {
+    for _ in 0..iterations {
+        let r = Mat3::from_quat(q);
+        let num = r.x_axis.cross(a.x_axis) + r.y_axis.cross(a.y_axis) + r.z_axis.cross(a.z_axis);
+        let den = (r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis)).abs() + 1e-9;
+        let omega = num / den;
+        let angle = omega.length();
+        if angle.is_nan() || angle <= 1e-7 {
+            break;
+        }
+        q = (Quat::from_axis_angle(omega / angle, angle) * q).normalize();
+    }
+    q
+}
+
+/// Linear-elastic stress of a strain, P-Eq. 5 without the pore term:
+/// P = 2 mu eps + lambda tr(eps) I.
+#[inline(always)]
+pub fn stress(eps: &Mat3, m: Lame) -> Mat3 {
+    *eps * (2.0 * m.mu) + Mat3::from_diagonal(Vec3::splat(m.lambda * trace(eps)))
+}
+
+/// The trace of a matrix.
+#[inline(always)]
+pub fn trace(m: &Mat3) -> f32 {
+    m.x_axis.x + m.y_axis.y + m.z_axis.z
+}
+
+/// The symmetric part (m + m^T) / 2.
+#[inline(always)]
+pub fn sym(m: &Mat3) -> Mat3 {
+    (*m + m.transpose()) * 0.5
+}
+
+/// The von Mises equivalent of a stress, Pa.
+pub fn von_mises(s: &Mat3) -> f32 {
+    let (xx, yy, zz) = (s.x_axis.x, s.y_axis.y, s.z_axis.z);
+    let (xy, yz, zx) =
+        (0.5 * (s.y_axis.x + s.x_axis.y), 0.5 * (s.z_axis.y + s.y_axis.z), 0.5 * (s.x_axis.z + s.z_axis.x));
+    (0.5 * ((xx - yy).powi(2) + (yy - zz).powi(2) + (zz - xx).powi(2)) + 3.0 * (xy * xy + yz * yz + zx * zx)).sqrt()
+}
+
+/// Most iterations of the rotation extraction per particle and step
+/// (PHYSICS.md §3.2 suggests 10 with a warm start; the loop stops as soon
+/// as it has converged).
+pub const ROTATION_ITERATIONS: u32 = 100;
+
+/// The per-step state of the solids after [`deform`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Deformation {
+    /// RL_i = R_i L_i.
+    pub rl: Mat3,
+    /// The corotated strain eps_i = sym(F_i) - I (P-Eq. 4, PHYSICS.md §8.6).
+    pub strain: Mat3,
+}
+
+/// Steps 1-5 of PHYSICS.md §3.2 for every particle: F~_i, the rotation R_i
+/// (warm-started from and written back to `rot`), RL_i, the corotated
+/// deformation gradient F_i = I + sum_j ((x_j - x_i) - R_i (x_j0 - x_i0))
+/// (x) RL_i grad W_ij0 V_j0, and the strain eps_i = sym(F_i) - I.
+pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deformation]) {
+    rot.par_chunks_mut(BLOCK).zip(out.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (rot, out))| {
+        for (q, (r, o)) in rot.iter_mut().zip(out.iter_mut()).enumerate() {
+            let i = b * BLOCK + q;
+            let range = rest.range(i);
+            let mut s1 = Mat3::ZERO;
+            for p in range.clone() {
+                s1 += outer(x[rest.j[p] as usize] - x[i], rest.w[p]);
+            }
+            let l = rest.correction[i];
+            let f_tilde = s1 * l.transpose();
+            // Warm-started from the last step's rotation, this converges
+            // in a few iterations; a large rotation within one step (a
+            // rigidly rotated initial state) takes more.
+            *r = extract_rotation(&f_tilde, *r, ROTATION_ITERATIONS);
+            let rm = Mat3::from_quat(*r);
+            let rl = rm * l;
+            let mut a = Mat3::ZERO;
+            for p in range {
+                a += outer(x[rest.j[p] as usize] - x[i] - rm * rest.dx0[p], rest.w[p]);
+            }
+            let f = Mat3::IDENTITY + a * rl.transpose();
+            *o = Deformation { rl, strain: sym(&f) - Mat3::IDENTITY };
+        }
+    });
+}
+
+/// T_i = P_i RL_i of every particle, with P_i = stress(eps_i) - eta p_pore I
+/// (P-Eq. 5; `pore` gives eta p^pore_i, or `None` without pore pressure).
+pub fn stress_rl(def: &[Deformation], lame: &[Lame], pore: Option<&[f32]>, t: &mut [Mat3], vm: &mut [f32]) {
+    t.par_iter_mut().zip(vm.par_iter_mut()).enumerate().for_each(|(i, (t, vm))| {
+        let mut p = stress(&def[i].strain, lame[i]);
+        if let Some(pore) = pore {
+            p -= Mat3::from_diagonal(Vec3::splat(pore[i]));
+        }
+        *vm = von_mises(&p);
+        *t = p * def[i].rl;
+    });
+}
+
+/// Elastic forces f_i = V_i0 sum_j (T_i + T_j) w_ij (PHYSICS.md §3.2 step 6).
+pub fn forces(rest: &RestState, t: &[Mat3], f: &mut [Vec3]) {
+    f.par_iter_mut().enumerate().for_each(|(i, f)| {
+        let ti = t[i];
+        let mut acc = Vec3::ZERO;
+        for p in rest.range(i) {
+            acc += (ti + t[rest.j[p] as usize]) * rest.w[p];
+        }
+        *f = rest.volume[i] * acc;
+    });
+}
+
+/// The implicit system of PHYSICS.md §3.3 in mass-weighted (symmetric) form:
+/// (M A v)_i = m_i v_i - dt f^(v)_i, with f^ the elastic force of the strain
+/// increment eps^_i = dt sym(sum_j V_j0 (v_j - v_i) (x) RL_i grad W_ij0).
+/// Rows of fixed particles are the identity (m_i v_i).
+pub struct System<'a> {
+    pub rest: &'a RestState,
+    pub def: &'a [Deformation],
+    pub lame: &'a [Lame],
+    pub mass: &'a [f32],
+    /// 1 for particles whose velocity is prescribed.
+    pub fixed: &'a [u32],
+    pub dt: f32,
+}
+
+impl System<'_> {
+    /// out = (M A) v; `t` is scratch for T^_i = P^_i RL_i.
+    pub fn apply(&self, v: &[Vec3], t: &mut [Mat3], out: &mut [Vec3]) {
+        let (rest, dt) = (self.rest, self.dt);
+        t.par_iter_mut().enumerate().for_each(|(i, t)| {
+            let vi = v[i];
+            let mut g = Mat3::ZERO;
+            for p in rest.range(i) {
+                g += outer(v[rest.j[p] as usize] - vi, rest.w[p]);
+            }
+            let rl = self.def[i].rl;
+            let eps = sym(&(g * rl.transpose())) * dt;
+            *t = stress(&eps, self.lame[i]) * rl;
+        });
+        out.par_iter_mut().enumerate().for_each(|(i, o)| {
+            if self.fixed[i] != 0 {
+                *o = self.mass[i] * v[i];
+                return;
+            }
+            let ti = t[i];
+            let mut acc = Vec3::ZERO;
+            for p in rest.range(i) {
+                acc += (ti + t[rest.j[p] as usize]) * rest.w[p];
+            }
+            *o = self.mass[i] * v[i] - dt * rest.volume[i] * acc;
+        });
+    }
+}
+
+/// Buffers of the conjugate gradients, kept across steps.
+#[derive(Clone, Debug, Default)]
+pub struct CgBuffers {
+    r: Vec<Vec3>,
+    p: Vec<Vec3>,
+    ap: Vec<Vec3>,
+    t: Vec<Mat3>,
+    parts: Vec<f64>,
+}
+
+impl CgBuffers {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        12 * (self.r.capacity() + self.p.capacity() + self.ap.capacity())
+            + 36 * self.t.capacity()
+            + 8 * self.parts.capacity()
+    }
+}
+
+/// What a conjugate-gradient solve did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CgStats {
+    pub iterations: u32,
+    /// |r| / |b| at the end.
+    pub residual: f32,
+}
+
+/// Solves (M A) v = rhs by conjugate gradients without preconditioner
+/// (as [SPH]), filtered so that fixed particles keep the velocity `v` holds
+/// on entry (their residual and search direction are 0). `v` is the warm
+/// start on entry and the solution on exit. Stops at |r| <= tol |rhs| or
+/// after `max_iterations`.
+pub fn conjugate_gradients(
+    sys: &System,
+    rhs: &[Vec3],
+    v: &mut [Vec3],
+    tol: f32,
+    max_iterations: u32,
+    buf: &mut CgBuffers,
+) -> CgStats {
+    let n = v.len();
+    buf.r.resize(n, Vec3::ZERO);
+    buf.p.resize(n, Vec3::ZERO);
+    buf.ap.resize(n, Vec3::ZERO);
+    buf.t.resize(n, Mat3::ZERO);
+    buf.parts.resize(nblocks(n), 0.0);
+    let fixed = sys.fixed;
+    let CgBuffers { r, p, ap, t, parts } = buf;
+    let dot = |parts: &mut [f64], a: &[Vec3], b: &[Vec3]| sum_f64(n, parts, |i| f64::from(a[i].dot(b[i])));
+    let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from(rhs[i].length_squared()) });
+    sys.apply(v, t, ap);
+    r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
+        *r = if fixed[i] != 0 { Vec3::ZERO } else { rhs[i] - ap[i] };
+        *p = *r;
+    });
+    let mut rr = dot(parts, r, r);
+    let goal = f64::from(tol).powi(2) * b2;
+    let mut it = 0;
+    while it < max_iterations && rr > goal && rr > 0.0 {
+        sys.apply(p, t, ap);
+        ap.par_iter_mut().enumerate().for_each(|(i, a)| {
+            if fixed[i] != 0 {
+                *a = Vec3::ZERO;
+            }
+        });
+        let pap = dot(parts, p, ap);
+        if pap.is_nan() || pap <= 0.0 {
+            break;
+        }
+        let alpha = (rr / pap) as f32;
+        v.par_iter_mut().zip(r.par_iter_mut()).enumerate().for_each(|(i, (v, r))| {
+            *v += alpha * p[i];
+            *r -= alpha * ap[i];
+        });
+        let rr_new = dot(parts, r, r);
+        let beta = (rr_new / rr) as f32;
+        p.par_iter_mut().zip(r.par_iter()).for_each(|(p, r)| *p = *r + beta * *p);
+        rr = rr_new;
+        it += 1;
+    }
+    let residual = if b2 > 0.0 { (rr / b2).sqrt() as f32 } else { 0.0 };
+    CgStats { iterations: it, residual }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn block(n: [usize; 3], d: f32) -> Vec<Vec3> {
+        let mut x = Vec::new();
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    x.push(Vec3::new(i as f32, j as f32, k as f32) * d);
+                }
+            }
+        }
+        x
+    }
+
+    #[test]
+    fn rotation_of_a_rotation_is_itself() {
+        let r = Quat::from_axis_angle(Vec3::new(1.0, 2.0, -0.5).normalize(), 1.1);
+        let a = Mat3::from_quat(r) * Mat3::from_diagonal(Vec3::new(1.2, 0.9, 1.05));
+        let q = extract_rotation(&a, Quat::IDENTITY, 50);
+        assert!((Mat3::from_quat(q) - Mat3::from_quat(r)).abs_diff_eq(Mat3::ZERO, 1e-5));
+    }
+
+    #[test]
+    fn correction_reproduces_linear_fields() {
+        let d = 0.01;
+        let x0 = block([6, 6, 6], d);
+        let n = x0.len();
+        let rest = RestState::new(&x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &CubicSpline::new(2.0 * d));
+        for i in 0..n {
+            let mut c = Mat3::ZERO;
+            for p in rest.range(i) {
+                c += outer(rest.dx0[p], rest.correction[i] * rest.w[p]);
+            }
+            assert!(c.abs_diff_eq(Mat3::IDENTITY, 1e-4), "particle {i}: {c:?}");
+        }
+    }
+}

@@ -1,0 +1,188 @@
+//! Elastic solids in the step (PHYSICS.md §3; passes 6 and 8 of §6).
+//!
+//! The fluid code sees a solid only as particles with positions,
+//! velocities, masses and pressure-solve rest volumes (the [`SolidStore`]);
+//! how a solid deforms is behind [`SolidModel`]. [`Peer2018`] is the implicit
+//! corotated SPH elasticity of Peer et al. 2018; another model (the paper's
+//! Example 7 uses a granular one) implements the same trait.
+
+use crate::store::SolidStore;
+use glam::{Mat3, Quat, Vec3};
+use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::elasticity::{
+    conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
+};
+use rayon::prelude::*;
+
+/// Rest volumes of the solid particles in the pressure solve, Akinci-style
+/// as PHYSICS.md §2.3 gives them: V0_s = gamma / sum_{s'} W_ss' over the
+/// rest neighbours in the same body (incl. self), with `gamma` the flat
+/// two-layer lattice sum of the walls ([`super::setup::flat_wall_gamma`]):
+/// so V0_s = d^3 at a flat surface (the only layer within reach of the
+/// fluid is the surface and the one behind it), more at convex edges and
+/// corners. (V0_s = d^3 everywhere made the rows of block edges
+/// ill-conditioned, as it did for walls: a floating block blew up in 9
+/// steps.)
+pub fn pressure_volumes(solids: &SolidStore, kernel: &CubicSpline, gamma: f32) -> Vec<f32> {
+    let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
+    let rest = RestState::new(&x0, &solids.body, &solids.mass, kernel);
+    (0..solids.len())
+        .map(|i| {
+            let s = kernel.w0() + rest.range(i).map(|p| kernel.w(rest.dx0[p].length())).sum::<f32>();
+            gamma / s
+        })
+        .collect()
+}
+
+/// What a solid model did in one step.
+pub type SolidStats = CgStats;
+
+/// A model of how solid particles deform and move.
+pub trait SolidModel: Send + Sync {
+    /// A short name, e.g. "peer2018".
+    fn name(&self) -> &'static str;
+
+    /// One step for every solid particle: sets the new velocities v^{n+1}
+    /// in `solids` (positions are integrated by the pipeline afterwards),
+    /// given the external acceleration `a_ext` of each particle (gravity and
+    /// the fluid's pressure force over the mass, m/s^2) and `pore`, the pore
+    /// stress eta p^pore of each particle (Pa) or `None`. The velocities of
+    /// fixed particles are already prescribed in `solids` and stay. Writes
+    /// the outputs `stress` and `strain_trace`.
+    fn advance(&mut self, solids: &mut SolidStore, a_ext: &[Vec3], pore: Option<&[f32]>, dt: f32) -> SolidStats;
+
+    /// Bytes held.
+    fn bytes(&self) -> usize;
+}
+
+/// Implicit corotated SPH elasticity (Peer et al. 2018, PHYSICS.md §3.1-3.3):
+/// rotations by Müller's extraction, corotated strain and stress (P-Eqs.
+/// 4-5), and the velocities from conjugate gradients on the linearised
+/// implicit system with frozen rotations.
+pub struct Peer2018 {
+    rest: RestState,
+    /// Lamé parameters of each particle (from its body).
+    lame: Vec<Lame>,
+    /// Relative residual at which CG stops.
+    tolerance: f32,
+    max_iterations: u32,
+    // Per-step buffers, kept for their capacity.
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    rot: Vec<Quat>,
+    def: Vec<Deformation>,
+    t: Vec<Mat3>,
+    von_mises: Vec<f32>,
+    force: Vec<Vec3>,
+    rhs: Vec<Vec3>,
+    cg: CgBuffers,
+}
+
+impl Peer2018 {
+    /// The model for the particles of `solids` (rest positions, bodies and
+    /// masses), with the Lamé parameters of each body.
+    pub fn new(
+        solids: &SolidStore,
+        body_lame: &[Lame],
+        kernel: &CubicSpline,
+        tolerance: f32,
+        max_iterations: u32,
+    ) -> Self {
+        let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
+        let rest = RestState::new(&x0, &solids.body, &solids.mass, kernel);
+        let lame = solids.body.iter().map(|&b| body_lame[b as usize]).collect();
+        Peer2018 {
+            rest,
+            lame,
+            tolerance,
+            max_iterations,
+            x: Vec::new(),
+            v: Vec::new(),
+            rot: Vec::new(),
+            def: Vec::new(),
+            t: Vec::new(),
+            von_mises: Vec::new(),
+            force: Vec::new(),
+            rhs: Vec::new(),
+            cg: CgBuffers::default(),
+        }
+    }
+
+    /// The rest-configuration data (SS0, V_i0, L_i).
+    pub fn rest(&self) -> &RestState {
+        &self.rest
+    }
+
+    /// The elastic forces f_i of the last [`SolidModel::advance`], N.
+    pub fn elastic_forces(&self) -> &[Vec3] {
+        &self.force
+    }
+}
+
+impl SolidModel for Peer2018 {
+    fn name(&self) -> &'static str {
+        "peer2018"
+    }
+
+    fn advance(&mut self, s: &mut SolidStore, a_ext: &[Vec3], pore: Option<&[f32]>, dt: f32) -> SolidStats {
+        let n = s.len();
+        self.x.clear();
+        self.x.extend((0..n).map(|i| Vec3::new(s.x[i], s.y[i], s.z[i])));
+        self.rot.clear();
+        self.rot.extend((0..n).map(|i| Quat::from_xyzw(s.qx[i], s.qy[i], s.qz[i], s.qw[i])));
+        self.def.resize(n, Deformation::default());
+        self.t.resize(n, Mat3::ZERO);
+        self.von_mises.resize(n, 0.0);
+        self.force.resize(n, Vec3::ZERO);
+
+        // PHYSICS.md §3.2: rotations, strain, stress, elastic forces.
+        deform(&self.rest, &self.x, &mut self.rot, &mut self.def);
+        stress_rl(&self.def, &self.lame, pore, &mut self.t, &mut self.von_mises);
+        forces(&self.rest, &self.t, &mut self.force);
+        for (i, q) in self.rot.iter().enumerate() {
+            (s.qx[i], s.qy[i], s.qz[i], s.qw[i]) = (q.x, q.y, q.z, q.w);
+        }
+        s.stress.copy_from_slice(&self.von_mises);
+        s.strain_trace.par_iter_mut().zip(self.def.par_iter()).for_each(|(t, d)| *t = trace(&d.strain));
+
+        // PHYSICS.md §3.3: M A v = m v + dt (m a_ext + f), warm start
+        // v + dt a_ext; fixed particles keep their prescribed velocity.
+        self.v.clear();
+        self.v.extend((0..n).map(|i| {
+            let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
+            if s.fixed[i] != 0 {
+                v
+            } else {
+                v + dt * a_ext[i]
+            }
+        }));
+        self.rhs.clear();
+        self.rhs.extend((0..n).map(|i| {
+            let m = s.mass[i];
+            let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
+            if s.fixed[i] != 0 {
+                m * v
+            } else {
+                m * v + dt * (m * a_ext[i] + self.force[i])
+            }
+        }));
+        let sys = System { rest: &self.rest, def: &self.def, lame: &self.lame, mass: &s.mass, fixed: &s.fixed, dt };
+        let stats =
+            conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg);
+        for (i, v) in self.v.iter().enumerate() {
+            (s.vx[i], s.vy[i], s.vz[i]) = (v.x, v.y, v.z);
+        }
+        stats
+    }
+
+    fn bytes(&self) -> usize {
+        self.rest.bytes()
+            + 8 * self.lame.capacity()
+            + 12 * (self.x.capacity() + self.v.capacity() + self.force.capacity() + self.rhs.capacity())
+            + 16 * self.rot.capacity()
+            + std::mem::size_of::<Deformation>() * self.def.capacity()
+            + 36 * self.t.capacity()
+            + 4 * self.von_mises.capacity()
+            + self.cg.bytes()
+    }
+}
