@@ -4,7 +4,9 @@ use clap::{Args, Parser, Subcommand};
 use porosph::builtin;
 use porosph::io::checkpoint::{file_kind, inspect_checkpoint, read_checkpoint, FileKind};
 use porosph::io::inspect_frame;
+use porosph::io::read_stats;
 use porosph::pipeline::Simulation;
+use porosph::plot::{self, PlotOptions};
 use porosph::render::{self, Camera, ColorMode, RenderOptions};
 use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
@@ -115,6 +117,22 @@ enum Command {
         /// with one camera and colour range for all.
         #[arg(long)]
         movie: bool,
+    },
+    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG: the time step,
+    /// the pressure solve (iterations, density error), the change of each
+    /// phase volume and the time per pass, stacked, over the run.
+    Plot {
+        /// A run directory (holding stats.csv), or a stats file.
+        input: PathBuf,
+        /// Output picture (default: plots.png beside stats.csv).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1600)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 1000)]
+        height: u32,
     },
 }
 
@@ -401,6 +419,43 @@ fn render_command(
     Ok(())
 }
 
+/// Plots the stats of a run directory (or a stats file) to `out`
+/// (default: plots.png beside the stats file).
+fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> Result<(), String> {
+    let ((w0, h0), max) = (plot::MIN_SIZE, plot::MAX_SIDE);
+    if !((w0..=max).contains(&width) && (h0..=max).contains(&height)) {
+        return Err(format!("--width must be {w0} to {max} pixels and --height {h0} to {max}"));
+    }
+    let csv = if input.is_dir() {
+        input.join("stats.csv")
+    } else if input.exists() {
+        input.to_path_buf()
+    } else {
+        return Err(format!("{}: no such run directory or stats file", input.display()));
+    };
+    let table = read_stats(&csv).map_err(|e| e.to_string())?;
+    if table.torn_last_line {
+        eprintln!(
+            "porosph: note: {}: the last line has no newline yet (is the run writing it?): left out",
+            csv.display()
+        );
+    }
+    let span = |name: &str| table.column(name).map(|c| (c[0], c[c.len() - 1]));
+    let title = match (span("step"), span("time")) {
+        (Some((s0, s1)), Some((t0, t1))) => {
+            format!("{}: steps {s0} to {s1}, t = {t0:.4} to {t1:.4} s", csv.display())
+        }
+        _ => csv.display().to_string(),
+    };
+    let image =
+        plot::plot(&table, &title, &PlotOptions { width, height }).map_err(|e| format!("{}: {e}", csv.display()))?;
+    let out = out.unwrap_or_else(|| csv.with_file_name("plots.png"));
+    image.write_png(&out).map_err(|e| e.to_string())?;
+    let rows = table.rows();
+    eprintln!("porosph: wrote {} ({rows} row{})", out.display(), if rows == 1 { "" } else { "s" });
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -431,6 +486,7 @@ fn main() -> ExitCode {
         Command::Render { input, out, width, height, color, walls, ortho, movie } => {
             render_command(&input, out, width, height, color, walls, ortho, movie)
         }
+        Command::Plot { input, out, width, height } => plot_command(&input, out, width, height),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
