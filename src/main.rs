@@ -7,7 +7,7 @@ use porosph::io::inspect_frame;
 use porosph::io::read_stats;
 use porosph::pipeline::Simulation;
 use porosph::plot::{self, PlotOptions};
-use porosph::render::{self, Camera, ColorMode, RenderOptions};
+use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
 use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -98,25 +98,12 @@ enum Command {
         /// Output picture (default: the frame's name with .png).
         #[arg(short, long, conflicts_with = "movie")]
         out: Option<PathBuf>,
-        /// Image width, pixels.
-        #[arg(long, default_value_t = 1280)]
-        width: u32,
-        /// Image height, pixels.
-        #[arg(long, default_value_t = 720)]
-        height: u32,
-        /// Colour by: phase (the phase mixture), speed or pressure (colormap).
-        #[arg(long, default_value = "phase", value_parser = parse_color)]
-        color: ColorMode,
-        /// Draw the wall particles (faintly).
-        #[arg(long)]
-        walls: bool,
-        /// Orthographic camera (default: perspective).
-        #[arg(long)]
-        ortho: bool,
         /// Render every frame of OUTDIR/frames/ to OUTDIR/render/frame_NNNNN.png,
         /// with one camera and colour range for all.
         #[arg(long)]
         movie: bool,
+        #[command(flatten)]
+        args: RenderArgs,
     },
     /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG: the time step,
     /// the pressure solve (iterations, density error), the change of each
@@ -134,6 +121,63 @@ enum Command {
         #[arg(long, default_value_t = 1000)]
         height: u32,
     },
+}
+
+/// Options of `render`.
+#[derive(Args)]
+struct RenderArgs {
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    #[arg(long, default_value = "phase", value_parser = parse_color, help = color_help())]
+    color: ColorMode,
+    /// Draw the wall particles (faintly).
+    #[arg(long)]
+    walls: bool,
+    /// Orthographic camera (default: perspective).
+    #[arg(long, help_heading = "Camera")]
+    ortho: bool,
+    /// Camera position, m (default: in front of the scene, a little above
+    /// and to the right, just far enough to show it all).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, help_heading = "Camera")]
+    eye: Option<[f32; 3]>,
+    /// The point the camera looks at, drawn at the image centre, m
+    /// (default: the centre of the fluid and solid particles' bounding box).
+    /// Image up is +y (looking down within 8 degrees of the vertical: -z).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, help_heading = "Camera")]
+    target: Option<[f32; 3]>,
+    /// Vertical field of view of the perspective camera, degrees (default 34.4).
+    #[arg(long, value_name = "DEGREES", value_parser = parse_fov, conflicts_with = "ortho", help_heading = "Camera")]
+    fov: Option<f32>,
+}
+
+fn color_help() -> String {
+    let modes: Vec<String> = ColorMode::ALL.iter().map(|(_, name, what)| format!("{name} ({what})")).collect();
+    format!("Colour by: {}", modes.join(", "))
+}
+
+/// `X,Y,Z`: three finite numbers.
+fn parse_point(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected three numbers X,Y,Z in metres, e.g. 0.5,0.3,1.2"))?;
+    match v[..] {
+        [x, y, z] if [x, y, z].iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("{s:?}: expected three finite numbers X,Y,Z in metres, e.g. 0.5,0.3,1.2")),
+    }
+}
+
+fn parse_fov(s: &str) -> Result<f32, String> {
+    let (lo, hi) = render::FOV_RANGE_DEG;
+    match s.trim().parse::<f32>() {
+        Ok(f) if f >= lo && f <= hi => Ok(f),
+        _ => Err(format!("{s:?}: expected a field of view of {lo} to {hi} degrees")),
+    }
 }
 
 fn parse_color(s: &str) -> Result<ColorMode, String> {
@@ -370,7 +414,7 @@ fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
     }
     eprintln!();
     if let Some((lo, hi)) = lo_hi {
-        opts.camera = Some(Camera::framing(lo, hi, opts.width, opts.height, opts.orthographic));
+        opts.camera = Some(Camera::aimed(lo, hi, &opts.view, opts.width, opts.height, opts.orthographic));
     }
     opts.range = range;
     opts.radius = spacing.map(|s| 0.5 * s);
@@ -386,21 +430,22 @@ fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn render_command(
-    input: &Path,
-    out: Option<PathBuf>,
-    width: u32,
-    height: u32,
-    color: ColorMode,
-    walls: bool,
-    ortho: bool,
-    movie: bool,
-) -> Result<(), String> {
-    let opts = RenderOptions { width, height, color, walls, orthographic: ortho, ..RenderOptions::default() };
+fn render_command(input: &Path, out: Option<PathBuf>, movie: bool, a: RenderArgs) -> Result<(), String> {
+    let (width, height) = (a.width, a.height);
     if width == 0 || height == 0 || width > render::MAX_SIDE || height > render::MAX_SIDE {
         return Err(format!("--width and --height must be 1 to {} pixels", render::MAX_SIDE));
     }
+    let view = CameraSpec { eye: a.eye, target: a.target, fov_deg: a.fov };
+    view.check().map_err(|e| format!("--eye/--target/--fov: {e}"))?;
+    let opts = RenderOptions {
+        width,
+        height,
+        color: a.color,
+        walls: a.walls,
+        orthographic: a.ortho,
+        view,
+        ..RenderOptions::default()
+    };
     if movie {
         if !input.is_dir() {
             return Err(format!("{}: --movie needs a run directory (holding frames/)", input.display()));
@@ -483,9 +528,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Inspect { file } => inspect_command(&file),
-        Command::Render { input, out, width, height, color, walls, ortho, movie } => {
-            render_command(&input, out, width, height, color, walls, ortho, movie)
-        }
+        Command::Render { input, out, movie, args } => render_command(&input, out, movie, args),
         Command::Plot { input, out, width, height } => plot_command(&input, out, width, height),
     };
     match result {
