@@ -155,6 +155,10 @@ fn odd_but_valid_tables_plot() {
         let t = table(&text);
         plot(&t, "odd", &PlotOptions { width: 400, height: 300 }).unwrap_or_else(|e| panic!("{e}: {text:.80}"));
     }
+    // One row: a dot, not an invisible line of one point.
+    let one = plot(&table("step,time,dt\n1,0.1,0.001\n"), "one", &opts()).unwrap();
+    let dot = count_in_quadrant(&one, 0, 0, |c| c == PALETTE[0]);
+    assert!(dot >= 9, "{dot} dt pixels");
     let e = plot(&table("a,time\n1,2\n"), "x", &opts()).unwrap_err();
     assert!(e.0.contains("no `step` column"), "{e}");
 }

@@ -18,6 +18,7 @@
 
 use crate::io::StatsTable;
 use crate::render::Image;
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -317,15 +318,59 @@ fn with_legend<'a>(area: &Area<'a>, entries: &[(&str, RGBColor)], fonts: Fonts) 
 
 /// A line through `points`, drawn as separate segments: plotters joins
 /// the segments of a wide line with miters, which shoot far out of the
-/// chart at the sharp turns of noisy data.
+/// chart at the sharp turns of noisy data. Draw [`lone_point`] too.
 fn segments(
     points: &[(f64, f64)],
     color: RGBColor,
     fonts: Fonts,
 ) -> impl Iterator<Item = PathElement<(f64, f64)>> + '_ {
     let style = color.stroke_width((fonts.base / 9.0).round().max(1.0) as u32);
-    let single = (points.len() == 1).then(|| PathElement::new(vec![points[0], points[0]], style));
-    points.windows(2).map(move |w| PathElement::new(vec![w[0], w[1]], style)).chain(single)
+    points.windows(2).map(move |w| PathElement::new(vec![w[0], w[1]], style))
+}
+
+/// A dot for a line of one point, which [`segments`] cannot show.
+fn lone_point(points: &[(f64, f64)], color: RGBColor, fonts: Fonts) -> Option<Circle<(f64, f64), u32>> {
+    (points.len() == 1).then(|| Circle::new(points[0], fonts.px(0.3).max(2), color.filled()))
+}
+
+type Chart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A chart on `area` with `caption` over `x` and `y`, with room for a
+/// second y axis on the right if `right_axis`.
+fn chart<'a, 'b>(
+    area: &'a Area<'b>,
+    caption: &str,
+    (x, y): (Range<f64>, Range<f64>),
+    right_axis: bool,
+    fonts: Fonts,
+) -> Result<Chart<'a, 'b>, PlotError> {
+    let mut b = ChartBuilder::on(area);
+    b.caption(caption, fonts.caption()).margin(fonts.px(0.6)).x_label_area_size(fonts.px(2.6));
+    if right_axis {
+        b.y_label_area_size(fonts.px(3.6)).right_y_label_area_size(fonts.px(4.6));
+    } else {
+        b.y_label_area_size(fonts.px(4.6));
+    }
+    Ok(b.build_cartesian_2d(x, y)?)
+}
+
+/// Draws the chart's axes with their descriptions, and the grid.
+fn axes(chart: &mut Chart<'_, '_>, (x_desc, y_desc): (&str, &str), fonts: Fonts) -> Result<(), PlotError> {
+    let (x_tick, y_tick) = (tick_format(&chart.x_range()), tick_format(&chart.y_range()));
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&x_tick)
+        .y_label_formatter(&y_tick)
+        .label_style(fonts.label())
+        .axis_desc_style(fonts.desc())
+        .bold_line_style(GRID)
+        .light_line_style(TRANSPARENT)
+        .x_labels(6)
+        .y_labels(6)
+        .draw()?;
+    Ok(())
 }
 
 /// Which series get a legend.
@@ -353,28 +398,11 @@ fn line_panel(
     let plot_area =
         if legend == Legend::Always || entries.len() > 1 { with_legend(area, &entries, fonts)? } else { area.clone() };
     let y = y_range(extent(series.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), from_zero);
-    let (x_tick, y_tick) = (tick_format(&x), tick_format(&y));
-    let mut chart = ChartBuilder::on(&plot_area)
-        .caption(caption, fonts.caption())
-        .margin(fonts.px(0.6))
-        .x_label_area_size(fonts.px(2.6))
-        .y_label_area_size(fonts.px(4.6))
-        .build_cartesian_2d(x, y)?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .x_label_formatter(&x_tick)
-        .y_label_formatter(&y_tick)
-        .label_style(fonts.label())
-        .axis_desc_style(fonts.desc())
-        .bold_line_style(GRID)
-        .light_line_style(TRANSPARENT)
-        .x_labels(6)
-        .y_labels(6)
-        .draw()?;
+    let mut chart = chart(&plot_area, caption, (x, y), false, fonts)?;
+    axes(&mut chart, (x_desc, y_desc), fonts)?;
     for s in series {
         chart.draw_series(segments(&s.points, s.color, fonts))?;
+        chart.draw_series(lone_point(&s.points, s.color, fonts))?;
     }
     Ok(())
 }
@@ -421,28 +449,9 @@ fn pressure_solve(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Font
     let plot_area = with_legend(area, &entries, fonts)?;
     let y = y_range(extent(iterations.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), true);
     let y2 = y_range(extent(error.points.iter().map(|p| &p.1)), true);
-    let (x_tick, y_tick, y2_tick) = (tick_format(&x), tick_format(&y), tick_format(&y2));
-    let mut chart = ChartBuilder::on(&plot_area)
-        .caption(CAPTION, fonts.caption())
-        .margin(fonts.px(0.6))
-        .x_label_area_size(fonts.px(2.6))
-        .y_label_area_size(fonts.px(3.6))
-        .right_y_label_area_size(fonts.px(4.6))
-        .build_cartesian_2d(x.clone(), y)?
-        .set_secondary_coord(x, y2);
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("iterations")
-        .x_label_formatter(&x_tick)
-        .y_label_formatter(&y_tick)
-        .label_style(fonts.label())
-        .axis_desc_style(fonts.desc())
-        .bold_line_style(GRID)
-        .light_line_style(TRANSPARENT)
-        .x_labels(6)
-        .y_labels(6)
-        .draw()?;
+    let y2_tick = tick_format(&y2);
+    let mut chart = chart(&plot_area, CAPTION, (x.clone(), y), true, fonts)?.set_secondary_coord(x, y2);
+    axes(&mut chart, ("time (s)", "iterations"), fonts)?;
     chart
         .configure_secondary_axes()
         .y_desc("density error (%)")
@@ -452,8 +461,10 @@ fn pressure_solve(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Font
         .y_labels(6)
         .draw()?;
     chart.draw_secondary_series(segments(&error.points, error.color, fonts))?;
+    chart.draw_secondary_series(lone_point(&error.points, error.color, fonts))?;
     for s in &iterations {
         chart.draw_series(segments(&s.points, s.color, fonts))?;
+        chart.draw_series(lone_point(&s.points, s.color, fonts))?;
     }
     Ok(())
 }
@@ -556,28 +567,9 @@ fn pass_times(area: &Area<'_>, table: &StatsTable, step: &[f64], fonts: Fonts) -
     }
     entries.extend(passes.iter().enumerate().rev().map(|(k, (p, _))| (*p, palette(k))));
     let plot_area = with_legend(area, &entries, fonts)?;
-    let x_axis = x_range(&x);
-    let (x_tick, y_tick) = (tick_format(&x_axis), tick_format(&y));
     let caption = if per > 1 { format!("{CAPTION} (mean of {per} steps)") } else { CAPTION.to_string() };
-    let mut chart = ChartBuilder::on(&plot_area)
-        .caption(caption, fonts.caption())
-        .margin(fonts.px(0.6))
-        .x_label_area_size(fonts.px(2.6))
-        .y_label_area_size(fonts.px(4.6))
-        .build_cartesian_2d(x_axis, y)?;
-    chart
-        .configure_mesh()
-        .x_desc("step")
-        .y_desc("ms")
-        .x_label_formatter(&x_tick)
-        .y_label_formatter(&y_tick)
-        .label_style(fonts.label())
-        .axis_desc_style(fonts.desc())
-        .bold_line_style(GRID)
-        .light_line_style(TRANSPARENT)
-        .x_labels(6)
-        .y_labels(6)
-        .draw()?;
+    let mut chart = chart(&plot_area, &caption, (x_range(&x), y), false, fonts)?;
+    axes(&mut chart, ("step", "ms"), fonts)?;
     // The highest first; each lower one over it.
     for (k, top) in stacked.iter().enumerate().rev() {
         let points = x.iter().copied().zip(top.iter().copied()).filter(|(a, _)| usable(*a));
@@ -630,6 +622,16 @@ mod tests {
         // A column starting at 0 that is no part of a phase.
         let zero = |_: &str| Some(0.0);
         assert_eq!(volume_reference("x", &zero, 3.0), (3.0, "x (% of 3.00e0 m³)".into()));
+    }
+
+    #[test]
+    fn a_table_without_rows_is_a_plot_of_empty_panels() {
+        let columns: Vec<String> = ["step", "time", "dt", "iterations", "density_error", "volume_a", "ms_x", "ms_step"]
+            .map(String::from)
+            .to_vec();
+        let t = StatsTable { values: vec![Vec::new(); columns.len()], columns, torn_last_line: false };
+        let img = plot(&t, "empty", &PlotOptions { width: 400, height: 300 }).expect("a picture");
+        assert_eq!((img.width, img.height), (400, 300));
     }
 
     #[test]
