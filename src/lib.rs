@@ -8,6 +8,7 @@
 pub mod builtin;
 pub mod io;
 pub mod pipeline;
+pub mod plot;
 pub mod render;
 pub mod run;
 pub mod scene;

@@ -4,8 +4,10 @@ use clap::{Args, Parser, Subcommand};
 use porosph::builtin;
 use porosph::io::checkpoint::{file_kind, inspect_checkpoint, read_checkpoint, FileKind};
 use porosph::io::inspect_frame;
+use porosph::io::read_stats;
 use porosph::pipeline::Simulation;
-use porosph::render::{self, Camera, ColorMode, RenderOptions};
+use porosph::plot::{self, PlotOptions};
+use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
 use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -96,26 +98,86 @@ enum Command {
         /// Output picture (default: the frame's name with .png).
         #[arg(short, long, conflicts_with = "movie")]
         out: Option<PathBuf>,
-        /// Image width, pixels.
-        #[arg(long, default_value_t = 1280)]
-        width: u32,
-        /// Image height, pixels.
-        #[arg(long, default_value_t = 720)]
-        height: u32,
-        /// Colour by: phase (the phase mixture), speed or pressure (colormap).
-        #[arg(long, default_value = "phase", value_parser = parse_color)]
-        color: ColorMode,
-        /// Draw the wall particles (faintly).
-        #[arg(long)]
-        walls: bool,
-        /// Orthographic camera (default: perspective).
-        #[arg(long)]
-        ortho: bool,
         /// Render every frame of OUTDIR/frames/ to OUTDIR/render/frame_NNNNN.png,
         /// with one camera and colour range for all.
         #[arg(long)]
         movie: bool,
+        #[command(flatten)]
+        args: RenderArgs,
     },
+    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG: the time step,
+    /// the pressure solve (iterations, density error), the change of each
+    /// phase volume and the time per pass, stacked, over the run.
+    Plot {
+        /// A run directory (holding stats.csv), or a stats file.
+        input: PathBuf,
+        /// Output picture (default: plots.png beside stats.csv).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1600)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 1000)]
+        height: u32,
+    },
+}
+
+/// Options of `render`.
+#[derive(Args)]
+struct RenderArgs {
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    #[arg(long, default_value = "phase", value_parser = parse_color, help = color_help())]
+    color: ColorMode,
+    /// Draw the wall particles (faintly).
+    #[arg(long)]
+    walls: bool,
+    /// Orthographic camera (default: perspective).
+    #[arg(long, help_heading = "Camera")]
+    ortho: bool,
+    /// Camera position, m (default: in front of the scene, a little above
+    /// and to the right, just far enough to show it all).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, help_heading = "Camera")]
+    eye: Option<[f32; 3]>,
+    /// The point the camera looks at, drawn at the image centre, m
+    /// (default: the centre of the fluid and solid particles' bounding box).
+    /// Image up is +y (looking down within 8 degrees of the vertical: -z).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, help_heading = "Camera")]
+    target: Option<[f32; 3]>,
+    /// Vertical field of view of the perspective camera, degrees (default 34.4).
+    #[arg(long, value_name = "DEGREES", value_parser = parse_fov, conflicts_with = "ortho", help_heading = "Camera")]
+    fov: Option<f32>,
+}
+
+fn color_help() -> String {
+    let modes: Vec<String> = ColorMode::ALL.iter().map(|(_, name, what)| format!("{name} ({what})")).collect();
+    format!("Colour by: {}", modes.join(", "))
+}
+
+/// `X,Y,Z`: three finite numbers.
+fn parse_point(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected three numbers X,Y,Z in metres, e.g. 0.5,0.3,1.2"))?;
+    match v[..] {
+        [x, y, z] if [x, y, z].iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("{s:?}: expected three finite numbers X,Y,Z in metres, e.g. 0.5,0.3,1.2")),
+    }
+}
+
+fn parse_fov(s: &str) -> Result<f32, String> {
+    let (lo, hi) = render::FOV_RANGE_DEG;
+    match s.trim().parse::<f32>() {
+        Ok(f) if f >= lo && f <= hi => Ok(f),
+        _ => Err(format!("{s:?}: expected a field of view of {lo} to {hi} degrees")),
+    }
 }
 
 fn parse_color(s: &str) -> Result<ColorMode, String> {
@@ -352,7 +414,7 @@ fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
     }
     eprintln!();
     if let Some((lo, hi)) = lo_hi {
-        opts.camera = Some(Camera::framing(lo, hi, opts.width, opts.height, opts.orthographic));
+        opts.camera = Some(Camera::aimed(lo, hi, &opts.view, opts.width, opts.height, opts.orthographic));
     }
     opts.range = range;
     opts.radius = spacing.map(|s| 0.5 * s);
@@ -368,21 +430,22 @@ fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn render_command(
-    input: &Path,
-    out: Option<PathBuf>,
-    width: u32,
-    height: u32,
-    color: ColorMode,
-    walls: bool,
-    ortho: bool,
-    movie: bool,
-) -> Result<(), String> {
-    let opts = RenderOptions { width, height, color, walls, orthographic: ortho, ..RenderOptions::default() };
+fn render_command(input: &Path, out: Option<PathBuf>, movie: bool, a: RenderArgs) -> Result<(), String> {
+    let (width, height) = (a.width, a.height);
     if width == 0 || height == 0 || width > render::MAX_SIDE || height > render::MAX_SIDE {
         return Err(format!("--width and --height must be 1 to {} pixels", render::MAX_SIDE));
     }
+    let view = CameraSpec { eye: a.eye, target: a.target, fov_deg: a.fov };
+    view.check().map_err(|e| format!("--eye/--target/--fov: {e}"))?;
+    let opts = RenderOptions {
+        width,
+        height,
+        color: a.color,
+        walls: a.walls,
+        orthographic: a.ortho,
+        view,
+        ..RenderOptions::default()
+    };
     if movie {
         if !input.is_dir() {
             return Err(format!("{}: --movie needs a run directory (holding frames/)", input.display()));
@@ -398,6 +461,43 @@ fn render_command(
     let out = out.unwrap_or_else(|| input.with_extension("png"));
     render_file(input, &out, &opts)?;
     eprintln!("porosph: wrote {}", out.display());
+    Ok(())
+}
+
+/// Plots the stats of a run directory (or a stats file) to `out`
+/// (default: plots.png beside the stats file).
+fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> Result<(), String> {
+    let ((w0, h0), max) = (plot::MIN_SIZE, plot::MAX_SIDE);
+    if !((w0..=max).contains(&width) && (h0..=max).contains(&height)) {
+        return Err(format!("--width must be {w0} to {max} pixels and --height {h0} to {max}"));
+    }
+    let csv = if input.is_dir() {
+        input.join("stats.csv")
+    } else if input.exists() {
+        input.to_path_buf()
+    } else {
+        return Err(format!("{}: no such run directory or stats file", input.display()));
+    };
+    let table = read_stats(&csv).map_err(|e| e.to_string())?;
+    if table.torn_last_line {
+        eprintln!(
+            "porosph: note: {}: the last line has no newline yet (is the run writing it?): left out",
+            csv.display()
+        );
+    }
+    let span = |name: &str| table.column(name).map(|c| (c[0], c[c.len() - 1]));
+    let title = match (span("step"), span("time")) {
+        (Some((s0, s1)), Some((t0, t1))) => {
+            format!("{}: steps {s0} to {s1}, t = {t0:.4} to {t1:.4} s", csv.display())
+        }
+        _ => csv.display().to_string(),
+    };
+    let image =
+        plot::plot(&table, &title, &PlotOptions { width, height }).map_err(|e| format!("{}: {e}", csv.display()))?;
+    let out = out.unwrap_or_else(|| csv.with_file_name("plots.png"));
+    image.write_png(&out).map_err(|e| e.to_string())?;
+    let rows = table.rows();
+    eprintln!("porosph: wrote {} ({rows} row{})", out.display(), if rows == 1 { "" } else { "s" });
     Ok(())
 }
 
@@ -428,9 +528,8 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Inspect { file } => inspect_command(&file),
-        Command::Render { input, out, width, height, color, walls, ortho, movie } => {
-            render_command(&input, out, width, height, color, walls, ortho, movie)
-        }
+        Command::Render { input, out, movie, args } => render_command(&input, out, movie, args),
+        Command::Plot { input, out, width, height } => plot_command(&input, out, width, height),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,14 +1,15 @@
 //! `porosph render`: pictures of the expected size; a known frame renders
 //! its fluid and solid in their colours at the expected pixels and the
 //! background elsewhere; walls hidden by default; an empty frame is a
-//! background picture; `--movie` renders every frame; bad input is an error
-//! naming the file, never a panic.
+//! background picture; `--movie` renders every frame; the camera options put
+//! their target at the image centre and look from their eye; bad input is an
+//! error naming the file, never a panic.
 
 mod common;
 
 use common::TempDir;
 use porosph::io::{write_frame, ArrayData, Frame, PointArray};
-use porosph::render::{render, Camera, ColorMode, RenderOptions};
+use porosph::render::{render, Camera, CameraSpec, ColorMode, RenderOptions};
 use porosph::run::kind;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -252,6 +253,130 @@ fn cli_renders_a_frame_and_a_movie() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} succeeded");
         assert!(err.contains(&want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+const GREEN: [f32; 3] = [0.05, 0.8, 0.05];
+/// Where the marker of [`with_marker`] is: above the blobs, in front.
+const MARK: [f32; 3] = [0.0, 0.5, 0.2];
+
+fn greenish(c: [u8; 3]) -> bool {
+    c[1] > 100 && c[1] as u32 > 2 * c[0] as u32 && c[1] as u32 > 2 * c[2] as u32
+}
+
+/// The known frame and one green fluid particle at [`MARK`].
+fn with_marker() -> Frame {
+    let mut f = known_frame();
+    f.points.push(MARK);
+    for a in &mut f.arrays {
+        match (a.name.as_str(), &mut a.data) {
+            ("velocity", ArrayData::F32(v)) => v.extend([0.0; 3]),
+            ("pressure", ArrayData::F32(v)) => v.push(0.0),
+            ("color", ArrayData::F32(v)) => v.extend(GREEN),
+            ("kind", ArrayData::U8(v)) => v.push(kind::FLUID),
+            ("id", ArrayData::U32(v)) => v.push(v.len() as u32),
+            (name, _) => panic!("unexpected array {name}"),
+        }
+    }
+    f
+}
+
+#[test]
+fn camera_target_lands_at_the_image_centre() {
+    let f = with_marker();
+    let (lo, hi) = porosph::render::bounds(&f, false).unwrap().unwrap();
+    for (eye, fov, ortho) in [
+        (Some([0.3, 0.9, 1.5]), None, false),
+        (None, None, false),                  // the default direction and distance
+        (Some([0.0, 2.0, 0.2]), None, false), // straight down
+        (Some([-1.0, 0.5, -1.0]), Some(20.0), false),
+        (Some([1.0, 1.0, 1.0]), None, true),
+    ] {
+        let view = CameraSpec { eye, target: Some(MARK), fov_deg: fov };
+        let o = RenderOptions { view, orthographic: ortho, radius: Some(0.02), ..opts() };
+        let cam = Camera::aimed(lo, hi, &view, o.width, o.height, ortho);
+        let [x, y, _] = cam.project(MARK, o.width, o.height).unwrap();
+        assert!((x - 160.0).abs() < 1e-3 && (y - 100.0).abs() < 1e-3, "{view:?}: marker at ({x}, {y})");
+        if let Some(e) = eye {
+            assert_eq!(cam.eye, e);
+        }
+        let img = render(&f, &o).unwrap();
+        assert!(greenish(img.pixel(160, 100)), "{view:?}: centre pixel {:?}", img.pixel(160, 100));
+    }
+}
+
+#[test]
+fn camera_eye_sets_the_side_seen_from() {
+    let f = known_frame();
+    let (lo, hi) = porosph::render::bounds(&f, false).unwrap().unwrap();
+    // From the front (+z) the fluid (x < 0) is on the left; from behind, on
+    // the right; from above, on the left, also with the eye a little off
+    // the vertical to either side (-z is up: no turn for small offsets).
+    for (eye, fluid_left) in [
+        ([0.0, 0.0, 3.0], true),
+        ([0.0, 0.0, -3.0], false),
+        ([0.0, 3.0, 0.0], true),
+        ([0.0, 3.0, 0.05], true),
+        ([0.0, 3.0, -0.05], true),
+    ] {
+        let view = CameraSpec { eye: Some(eye), target: Some([0.0; 3]), fov_deg: None };
+        let o = RenderOptions { view, ..opts() };
+        let cam = Camera::aimed(lo, hi, &view, o.width, o.height, false);
+        let [x, y, _] = cam.project(FLUID_AT, o.width, o.height).unwrap();
+        assert_eq!(x < 160.0, fluid_left, "eye {eye:?}: fluid at x = {x}");
+        let img = render(&f, &o).unwrap();
+        assert!(blueish(img.pixel(x as u32, y as u32)), "eye {eye:?}: {:?}", img.pixel(x as u32, y as u32));
+    }
+    // A bad spec is an error, not a picture.
+    for (view, want) in [
+        (CameraSpec { eye: Some(MARK), target: Some(MARK), fov_deg: None }, "same point"),
+        (CameraSpec { fov_deg: Some(0.0), ..CameraSpec::default() }, "field of view"),
+        (CameraSpec { target: Some([f32::NAN, 0.0, 0.0]), ..CameraSpec::default() }, "finite"),
+    ] {
+        let e = render(&f, &RenderOptions { view, ..opts() }).unwrap_err();
+        assert!(e.0.contains(want), "{view:?}: {e}");
+    }
+}
+
+#[test]
+fn cli_camera_options() {
+    let dir = TempDir::new("render-camera");
+    let frame = dir.path("f.vtkhdf");
+    write_frame(&frame, &with_marker()).unwrap();
+    let png = dir.path("f.png");
+    // A negative coordinate as the next argument, and as --eye=.
+    for eye in [vec!["--eye", "-0.3,0.9,1.5"], vec!["--eye=-0.3,0.9,1.5"]] {
+        let mut args = vec!["render", s(&frame), "-o", s(&png), "--width", "101", "--height", "81"];
+        args.extend(eye);
+        args.extend(["--target", "0,0.5,0.2", "--fov", "25"]);
+        let out = porosph(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let mut dec = png::Decoder::new(std::fs::File::open(&png).unwrap()).read_info().unwrap();
+        let mut buf = vec![0; dec.output_buffer_size()];
+        dec.next_frame(&mut buf).unwrap();
+        let at = 3 * (40 * 101 + 50);
+        let centre = [buf[at], buf[at + 1], buf[at + 2]];
+        assert!(greenish(centre), "centre pixel {centre:?}");
+    }
+    let help = String::from_utf8_lossy(&porosph(&["render", "--help"]).stdout).to_string();
+    for want in ["--eye <X,Y,Z>", "--target <X,Y,Z>", "--fov <DEGREES>", "phase (the phase mixture)"] {
+        assert!(help.contains(want), "{want} not in --help:\n{help}");
+    }
+    for (args, want) in [
+        (vec!["--eye", "1,2"], "X,Y,Z"),
+        (vec!["--eye", "1,2,x"], "X,Y,Z"),
+        (vec!["--target", "1,2,inf"], "finite"),
+        (vec!["--fov", "0"], "1 to 179 degrees"),
+        (vec!["--fov", "30", "--ortho"], "cannot be used with"),
+        (vec!["--eye", "0,0.5,0.2", "--target", "0,0.5,0.2"], "same point"),
+    ] {
+        let mut all = vec!["render", s(&frame), "-o", s(&png)];
+        all.extend(&args);
+        let out = porosph(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(err.contains(want), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }

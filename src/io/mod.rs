@@ -9,7 +9,7 @@ mod vtkhdf;
 pub mod xxh64;
 
 pub use series::SeriesWriter;
-pub use stats::StatsWriter;
+pub use stats::{read_stats, StatsTable, StatsWriter};
 pub use vtkhdf::{inspect_frame, read_frame, write_frame};
 
 use std::fmt;

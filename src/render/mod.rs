@@ -36,15 +36,24 @@ pub enum ColorMode {
     Pressure,
 }
 
+impl ColorMode {
+    /// Every mode: its command-line name and what it shows (for parsing,
+    /// error messages and `--help`). A new mode is one more entry here and
+    /// one more arm in the renderer's `scalars`.
+    pub const ALL: [(ColorMode, &'static str, &'static str); 3] = [
+        (ColorMode::Phase, "phase", "the phase mixture"),
+        (ColorMode::Speed, "speed", "|velocity|, colormap"),
+        (ColorMode::Pressure, "pressure", "colormap"),
+    ];
+}
+
 impl std::str::FromStr for ColorMode {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "phase" => Ok(Self::Phase),
-            "speed" => Ok(Self::Speed),
-            "pressure" => Ok(Self::Pressure),
-            _ => Err(format!("unknown colour mode {s:?}: expected phase, speed or pressure")),
-        }
+        Self::ALL.iter().find(|m| m.1 == s).map(|m| m.0).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|m| m.1).collect();
+            format!("unknown colour mode {s:?}: expected one of {}", names.join(", "))
+        })
     }
 }
 
@@ -73,6 +82,51 @@ pub struct Camera {
     pub projection: Projection,
 }
 
+/// A camera asked for by position, aim and field of view (`porosph render
+/// --eye --target --fov`); what is not given comes from the default camera
+/// ([`Camera::framing`]). The image's up is the world's +y; for a view
+/// within about 8 degrees of straight down, -z (straight up, +z).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CameraSpec {
+    /// Camera position, m. Default: seen from the default camera's
+    /// direction, just far enough that the scene fits the image.
+    pub eye: Option<[f32; 3]>,
+    /// The point at the image centre, m. Default: the centre of the
+    /// framed particles' bounding box.
+    pub target: Option<[f32; 3]>,
+    /// Vertical field of view of the perspective camera, degrees (default
+    /// [`DEFAULT_FOV_Y`] in radians, about 34 degrees); not for the
+    /// orthographic camera.
+    pub fov_deg: Option<f32>,
+}
+
+/// Range of [`CameraSpec::fov_deg`], degrees.
+pub const FOV_RANGE_DEG: (f32, f32) = (1.0, 179.0);
+
+impl CameraSpec {
+    /// Checks the spec: finite coordinates, a field of view in
+    /// [`FOV_RANGE_DEG`], an eye apart from the target.
+    pub fn check(&self) -> Result<(), RenderError> {
+        for (name, p) in [("eye", self.eye), ("target", self.target)] {
+            if p.is_some_and(|p| !finite(p)) {
+                return Err(RenderError(format!("camera {name} {p:?}: coordinates must be finite numbers")));
+            }
+        }
+        if let Some(f) = self.fov_deg {
+            let (lo, hi) = FOV_RANGE_DEG;
+            if !(f >= lo && f <= hi) {
+                return Err(RenderError(format!("field of view {f} degrees: must be {lo} to {hi}")));
+            }
+        }
+        if let (Some(e), Some(t)) = (self.eye, self.target) {
+            if dist(e, t) < 1e-6 {
+                return Err(RenderError(format!("camera eye and target are the same point {e:?}")));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Downward tilt of the default camera, radians: it looks along -z and a
 /// little down, from above the front of the scene.
 const DEFAULT_TILT: f32 = 0.35;
@@ -80,7 +134,7 @@ const DEFAULT_TILT: f32 = 0.35;
 /// the scene's right side shows).
 const DEFAULT_YAW: f32 = 0.3;
 /// Vertical field of view of the default perspective camera, radians.
-const DEFAULT_FOV_Y: f32 = 0.6;
+pub const DEFAULT_FOV_Y: f32 = 0.6;
 
 impl Camera {
     /// The default camera for a scene inside the axis-aligned box `lo..hi`:
@@ -89,21 +143,51 @@ impl Camera {
     /// just far enough that the box's corners fit the image (`width` x
     /// `height` pixels) with a small margin.
     pub fn framing(lo: [f32; 3], hi: [f32; 3], width: u32, height: u32, orthographic: bool) -> Self {
+        Self::aimed(lo, hi, &CameraSpec::default(), width, height, orthographic)
+    }
+
+    /// The camera `spec` asks for, for a scene inside the box `lo..hi`:
+    /// what the spec leaves out is as in [`Camera::framing`] (the aim, the
+    /// direction, the distance that fits the box, the field of view). An
+    /// orthographic camera shows the whole box seen from its direction.
+    /// Check the spec first ([`CameraSpec::check`]): an eye at the target
+    /// looks from the default direction.
+    pub fn aimed(lo: [f32; 3], hi: [f32; 3], spec: &CameraSpec, width: u32, height: u32, orthographic: bool) -> Self {
         let c = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])];
-        let (st, ct) = DEFAULT_TILT.sin_cos();
-        let (sy, cy) = DEFAULT_YAW.sin_cos();
-        let forward = [-sy * ct, -st, -cy * ct];
-        let right = [cy, 0.0, -sy];
+        let target = spec.target.unwrap_or(c);
+        let normalized = |v: [f32; 3]| {
+            let m = dot(v, v).sqrt();
+            v.map(|x| x / m)
+        };
+        let (forward, right) = match spec.eye {
+            Some(eye) if dist(eye, target) > 0.0 => {
+                let f = normalized([target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]]);
+                // Image up is world +y, unless looking within about 8
+                // degrees of straight down (up): then -z (+z), so that a
+                // small offset of the eye does not turn a top view around.
+                let hint = if f[1].abs() > 0.99 { [0.0, 0.0, f[1].signum()] } else { [0.0, 1.0, 0.0] };
+                (f, normalized(cross(f, hint)))
+            }
+            _ => {
+                let (st, ct) = DEFAULT_TILT.sin_cos();
+                let (sy, cy) = DEFAULT_YAW.sin_cos();
+                ([-sy * ct, -st, -cy * ct], [cy, 0.0, -sy])
+            }
+        };
         let up = cross(right, forward);
+        let fov_y = spec.fov_deg.map_or(DEFAULT_FOV_Y, f32::to_radians);
         let aspect = width.max(1) as f32 / height.max(1) as f32;
-        // Half extents with a margin, at least a millimetre.
+        // Half extents with a margin, at least a millimetre; the box's
+        // corners relative to the target.
         let e = [0, 1, 2].map(|a| (0.5 * (hi[a] - lo[a])).max(1e-3) * 1.08);
-        let corners = (0..8).map(|m| [0, 1, 2].map(|a| if m >> a & 1 == 1 { e[a] } else { -e[a] }));
+        let off = [c[0] - target[0], c[1] - target[1], c[2] - target[2]];
+        let corners = (0..8).map(|m| [0, 1, 2].map(|a| off[a] + if m >> a & 1 == 1 { e[a] } else { -e[a] }));
+        let reach = dot(e, e).sqrt() + dot(off, off).sqrt();
         let (projection, d) = if orthographic {
             let hh = corners.fold(0.0f32, |acc, o| acc.max(dot(o, up).abs()).max(dot(o, right).abs() / aspect));
-            (Projection::Orthographic { half_height: hh }, 4.0 * dot(e, e).sqrt())
+            (Projection::Orthographic { half_height: hh }, 4.0 * reach)
         } else {
-            let ty = (0.5 * DEFAULT_FOV_Y).tan();
+            let ty = (0.5 * fov_y).tan();
             let tx = ty * aspect;
             // Corner o at view depth d + o.f must satisfy |o.r| <= tx (d + o.f)
             // and |o.u| <= ty (d + o.f).
@@ -111,9 +195,10 @@ impl Camera {
                 let z = dot(o, forward);
                 acc.max(dot(o, right).abs() / tx - z).max(dot(o, up).abs() / ty - z)
             });
-            (Projection::Perspective { fov_y: DEFAULT_FOV_Y }, d.max(1.2 * dot(e, e).sqrt()))
+            (Projection::Perspective { fov_y }, d.max(1.2 * reach))
         };
-        let eye = [c[0] - d * forward[0], c[1] - d * forward[1], c[2] - d * forward[2]];
+        let eye =
+            spec.eye.unwrap_or([target[0] - d * forward[0], target[1] - d * forward[1], target[2] - d * forward[2]]);
         Self { eye, forward, right, up, projection }
     }
 
@@ -151,10 +236,14 @@ pub struct RenderOptions {
     pub color: ColorMode,
     /// Draw the wall particles (faintly); hidden by default.
     pub walls: bool,
-    /// Orthographic rather than perspective default camera.
+    /// Orthographic rather than perspective camera.
     pub orthographic: bool,
-    /// Camera; `None`: [`Camera::framing`] of the fluid and solid points
-    /// (and of the walls, if drawn).
+    /// Where the camera is and looks, in part or not at all: the rest is
+    /// the default camera's ([`Camera::aimed`]).
+    pub view: CameraSpec,
+    /// The whole camera, overriding `view` and `orthographic`; `None`:
+    /// [`Camera::aimed`] at `view`, framing the fluid and solid points (and
+    /// the walls, if drawn).
     pub camera: Option<Camera>,
     /// Particle radius, m; `None`: half the typical nearest-neighbour
     /// distance ([`estimate_spacing`]).
@@ -173,6 +262,7 @@ impl Default for RenderOptions {
             color: ColorMode::Phase,
             walls: false,
             orthographic: false,
+            view: CameraSpec::default(),
             camera: None,
             radius: None,
             range: None,
@@ -490,8 +580,9 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
     let camera = match opts.camera {
         Some(c) => c,
         None => {
+            opts.view.check()?;
             let (lo, hi) = bounds(frame, opts.walls)?.unwrap_or(([-0.5; 3], [0.5; 3]));
-            Camera::framing(lo, hi, w, h, opts.orthographic)
+            Camera::aimed(lo, hi, &opts.view, w, h, opts.orthographic)
         }
     };
     let radius = match opts.radius {
