@@ -127,6 +127,8 @@ struct Workspace {
     sf: PairLists,
     /// Solid-solid pairs, current (sorted order).
     ss: PairLists,
+    /// Solid-wall pairs (solid queries in sorted order).
+    sb: PairLists,
     /// 0..number of solids (the identity row map of the solid rows).
     solid_rows: Vec<u32>,
 }
@@ -164,6 +166,7 @@ impl Simulation {
             + w.fs.bytes()
             + w.sf.bytes()
             + w.ss.bytes()
+            + w.sb.bytes()
             + w.ff.bytes()
             + w.fb.bytes()
             + w.bf.bytes()

@@ -237,7 +237,7 @@ fn step_passes(
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
         if ns > 0 {
-            solid_neighbors(p, fluid, solids, w);
+            solid_neighbors(p, fluid, solids, walls, w);
         }
     });
     let fs_pairs = (ns > 0).then_some(&w.fs);
@@ -500,6 +500,7 @@ fn step_passes(
             let cg = solid_model.advance(solids, a_ext, None, dt);
             st.cg_iterations = cg.iterations;
             st.cg_residual = cg.residual;
+            wall_contact(p, solids, walls, w);
         });
     }
 
@@ -740,7 +741,7 @@ fn rigid_pressure_acceleration(
 /// Pass 0 for solids: Morton order of the solid positions (a sorted copy; the
 /// store keeps its order), the solid grid, and the fluid-solid, solid-fluid
 /// and solid-solid pairs (solids in the sorted order).
-fn solid_neighbors(p: &Params, fluid: &FluidStore, solids: &SolidStore, w: &mut Workspace) {
+fn solid_neighbors(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &WallStore, w: &mut Workspace) {
     let ns = solids.len();
     let support = p.kernel.support;
     w.solid_keys.resize(ns, 0);
@@ -763,4 +764,48 @@ fn solid_neighbors(p: &Params, fluid: &FluidStore, solids: &SolidStore, w: &mut 
     build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
     build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
     build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+    build_pairs(&mut w.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+}
+
+/// Contact of solids with the static walls (walls do not take part in the
+/// elastic solve): a solid particle closer than d to a wall particle may
+/// not move further towards the wall. Its velocity loses the component
+/// along the wall normal n that points into the wall, n the direction of
+/// -sum_b grad W_sb over its wall neighbours (frictionless, inelastic
+/// contact; a velocity projection after the elastic solve).
+fn wall_contact(p: &Params, solids: &mut SolidStore, walls: &WallStore, w: &Workspace) {
+    let d2 = p.h * p.h;
+    for (b, blk) in w.sb.used().iter().enumerate() {
+        for q in 0..blk.start.len().saturating_sub(1) {
+            let k = b * porosph_kernels::blocks::BLOCK + q;
+            let i = w.solid_perm[k] as usize;
+            if solids.fixed[i] != 0 {
+                continue;
+            }
+            let (xs, ys, zs) = (solids.x[i], solids.y[i], solids.z[i]);
+            let mut touching = false;
+            let mut n = Vec3::ZERO;
+            for pr in blk.range(q) {
+                if blk.w[pr] <= 0.0 {
+                    continue;
+                }
+                let j = blk.j[pr] as usize;
+                let r2 = (xs - walls.x[j]).powi(2) + (ys - walls.y[j]).powi(2) + (zs - walls.z[j]).powi(2);
+                touching |= r2 < d2;
+                n -= Vec3::new(blk.gx[pr], blk.gy[pr], blk.gz[pr]);
+            }
+            let len = n.length();
+            if !touching || len <= 0.0 {
+                continue;
+            }
+            let n = n / len;
+            let v = Vec3::new(solids.vx[i], solids.vy[i], solids.vz[i]);
+            let vn = v.dot(n);
+            if vn < 0.0 {
+                let v = v - vn * n;
+                (solids.vx[i], solids.vy[i], solids.vz[i]) = (v.x, v.y, v.z);
+            }
+        }
+    }
 }
