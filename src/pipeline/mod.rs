@@ -2,6 +2,7 @@
 //! Algorithm 1), each timed by name. [`Simulation`] owns the particle store,
 //! the neighbour structures and the per-step arena.
 
+mod backend;
 mod restore;
 mod setup;
 mod step;
@@ -100,6 +101,10 @@ struct Workspace {
     /// Per phase, per block of fluid-fluid pairs: the pair fluxes of the
     /// conservative transport (kept for its capacity).
     pair_flux: Vec<Vec<Vec<f32>>>,
+    /// The GPU backend, if the run uses one (`Simulation::use_gpu`).
+    gpu: Option<Box<crate::backend::gpu::GpuBackend>>,
+    /// Why the GPU failed during the last step (reported as a step error).
+    gpu_error: Option<String>,
 }
 
 /// A running simulation: state, time, and what it needs to step.

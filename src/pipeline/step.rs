@@ -5,6 +5,7 @@
 
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
+use crate::backend::gpu::{SolveInput, SolveOutput, SolveSettings};
 use crate::store::{FluidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
@@ -50,6 +51,9 @@ impl Simulation {
         let Simulation { params, fluid, walls, work, arena, .. } = self;
         let mut stats = step_passes(params, fluid, walls, work, arena, dt);
         arena.reset();
+        if let Some(reason) = work.gpu_error.take() {
+            return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
+        }
         self.time += dt as f64;
         self.step += 1;
         let t = std::time::Instant::now();
@@ -311,7 +315,44 @@ fn step_passes(
     let err = zeros(arena, n);
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (diag[i] != 0.0) as u32 as f64).max(1.0);
+    let mut gpu_ms = 0.0;
     tm.time(pass::PRESSURE_SOLVE, || {
+        if let Some(gpu) = w.gpu.as_deref_mut().filter(|g| g.passes.pressure_solve) {
+            // The same loop on the GPU (shaders/iisph.wgsl), data resident.
+            let settings = SolveSettings {
+                dt,
+                omega: p.omega,
+                min_iterations: p.min_iterations,
+                max_iterations: p.max_iterations,
+                max_density_error: p.max_density_error,
+                rows_active: rows_active as f32,
+            };
+            let inp = SolveInput {
+                support,
+                fluid_grid: &w.fluid_grid,
+                wall_grid: &w.wall_grid,
+                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                walls: Points { x: &walls.x, y: &walls.y, z: &walls.z },
+                vol,
+                vm,
+                rows: Rows { source: src, diag },
+                vol_wall: vol_b_full,
+                active: &w.active,
+                wall_rows: Rows { source: src_b, diag: diag_b },
+                settings,
+            };
+            let ap = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+            let out = SolveOutput { p: &mut fluid.pressure, p_wall: &mut walls.pressure, ap };
+            match gpu.pressure_solve(&inp, out) {
+                Ok(r) => {
+                    st.iterations = r.iterations;
+                    st.density_error = r.density_error;
+                    gpu_ms = r.gpu_ms.unwrap_or(0.0);
+                }
+                Err(e) => w.gpu_error = Some(format!("GPU pressure solve failed: {e}")),
+            }
+            return;
+        }
         let mut it = 0;
         loop {
             let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
@@ -334,6 +375,7 @@ fn step_passes(
         let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
         iisph::pressure_acceleration(&w.ff, &w.fb, vm, &fluid.pressure, &walls.pressure, out);
     });
+    tm.gpu_ms[pass::PRESSURE_SOLVE] = gpu_ms;
 
     // Passes 10-12: drift velocities, drift momentum, volume-fraction
     // transport (several phases only; the pair lists now hold
