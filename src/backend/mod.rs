@@ -42,18 +42,21 @@ impl fmt::Display for BackendKind {
 
 /// The passes the GPU backend can run, by their `stats.csv` names
 /// (`crate::pipeline::PASSES`).
-pub const GPU_PASS_NAMES: [&str; 1] = ["pressure_solve"];
+pub const GPU_PASS_NAMES: [&str; 2] = ["neighbors", "pressure_solve"];
 
 /// Which passes go to the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GpuPasses {
+    /// Pass 0, neighbour search: its Morton keys and sort (the cell ranges
+    /// and pairs the CPU passes read are built on the CPU).
+    pub neighbors: bool,
     /// Pass 5, the IISPH relaxed Jacobi loop.
     pub pressure_solve: bool,
 }
 
 impl GpuPasses {
     /// Every pass the GPU backend implements.
-    pub const ALL: GpuPasses = GpuPasses { pressure_solve: true };
+    pub const ALL: GpuPasses = GpuPasses { neighbors: true, pressure_solve: true };
 }
 
 impl Default for GpuPasses {
@@ -64,14 +67,15 @@ impl Default for GpuPasses {
 
 impl FromStr for GpuPasses {
     type Err = String;
-    /// A comma-separated list of pass names (`pressure_solve`), or `all`.
+    /// A comma-separated list of pass names (`neighbors`, `pressure_solve`), or `all`.
     fn from_str(s: &str) -> Result<Self, String> {
         if s == "all" {
             return Ok(Self::ALL);
         }
-        let mut set = GpuPasses { pressure_solve: false };
+        let mut set = GpuPasses { neighbors: false, pressure_solve: false };
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             match name {
+                "neighbors" => set.neighbors = true,
                 "pressure_solve" => set.pressure_solve = true,
                 _ => {
                     return Err(format!(

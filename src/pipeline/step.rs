@@ -152,10 +152,28 @@ fn step_passes(
     let support = p.kernel.support;
 
     // Pass 0: Morton sort of the fluid, grid, neighbour pairs.
+    let mut gpu_ms = 0.0;
     tm.time(pass::NEIGHBORS, || {
-        w.keys.resize(n, 0);
-        compute_keys(&fluid.x, &fluid.y, &fluid.z, 1.0 / support, &mut w.keys);
-        sort_permutation(&w.keys, &mut w.sort, &mut w.perm);
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        // The keys and sort on the GPU (bitwise the CPU's order), or here;
+        // a GPU failure is reported after the step, which completes on the CPU.
+        let gpu = w.gpu.as_deref_mut().filter(|g| g.passes.neighbors);
+        let sorted = match gpu.map(|g| g.sort_permutation(fp, 1.0 / support, &mut w.sort, &mut w.perm)) {
+            Some(Ok(ms)) => {
+                gpu_ms = ms.unwrap_or(0.0);
+                true
+            }
+            Some(Err(e)) => {
+                w.gpu_error = Some(format!("GPU neighbour sort failed: {e}"));
+                false
+            }
+            None => false,
+        };
+        if !sorted {
+            w.keys.resize(n, 0);
+            compute_keys(&fluid.x, &fluid.y, &fluid.z, 1.0 / support, &mut w.keys);
+            sort_permutation(&w.keys, &mut w.sort, &mut w.perm);
+        }
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(&w.perm, &mut w.reorder);
         }
@@ -190,6 +208,7 @@ fn step_passes(
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
     });
+    tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
 
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
     // mu_m = sum_k alpha_k mu_k, alpha_f = sum_k alpha_k; m = rho_fm h^3 and
@@ -348,10 +367,11 @@ fn step_passes(
                     st.iterations = r.iterations;
                     st.density_error = r.density_error;
                     gpu_ms = r.gpu_ms.unwrap_or(0.0);
+                    return;
                 }
+                // Reported after the step, which completes on the CPU.
                 Err(e) => w.gpu_error = Some(format!("GPU pressure solve failed: {e}")),
             }
-            return;
         }
         let mut it = 0;
         loop {

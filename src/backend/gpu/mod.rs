@@ -5,17 +5,22 @@
 
 mod buffers;
 pub mod iisph;
+pub mod neighbors;
 pub mod ranges;
 #[cfg(test)]
 mod shader_tests;
 
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
+pub use neighbors::{NeighborParams, NeighborsGpu};
 
 use super::GpuPasses;
 use std::fmt;
 
 /// The WGSL sources, by file name (compiled into the binary).
-pub const SHADERS: [(&str, &str); 1] = [("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl"))];
+pub const SHADERS: [(&str, &str); 2] = [
+    ("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl")),
+    ("neighbors.wgsl", include_str!("../../../shaders/neighbors.wgsl")),
+];
 
 /// Why the GPU backend cannot run.
 #[derive(Clone, Debug, PartialEq)]
@@ -105,12 +110,25 @@ pub struct GpuBackend {
     pub ctx: GpuContext,
     pub passes: GpuPasses,
     iisph: Option<IisphGpu>,
+    neighbors: Option<NeighborsGpu>,
 }
 
 impl GpuBackend {
     /// Opens the GPU (an error says why there is none).
     pub fn new(passes: GpuPasses) -> Result<Self, GpuError> {
-        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None })
+        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None })
+    }
+
+    /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
+    pub fn sort_permutation(
+        &mut self,
+        pts: porosph_kernels::neighbors::Points,
+        inv_cell: f32,
+        sort: &mut Vec<(u64, u32)>,
+        perm: &mut Vec<u32>,
+    ) -> Result<Option<f64>, GpuError> {
+        let ctx = &self.ctx;
+        self.neighbors.get_or_insert_with(|| NeighborsGpu::new(ctx)).sort(ctx, pts, inv_cell, sort, perm)
     }
 
     /// The IISPH Jacobi loop (pass 5) on the GPU; see [`IisphGpu::solve`].

@@ -3,6 +3,7 @@
 //! parameter struct has the size and field offsets of its WGSL twin.
 
 use super::iisph::IisphParams;
+use super::neighbors::NeighborParams;
 use super::SHADERS;
 use std::mem::{offset_of, size_of};
 use std::path::PathBuf;
@@ -73,6 +74,16 @@ fn iisph_params_layout_matches_wgsl() {
         rows_active,
     );
     assert_eq!(wgsl_layout(&module, "IisphParams"), rust);
+}
+
+#[test]
+fn neighbor_params_layout_matches_wgsl() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "neighbors.wgsl").expect("neighbors.wgsl");
+    let module = compile("neighbors.wgsl", src);
+    let rust = rust_layout!(NeighborParams, n, n_pow2, k, j, inv_cell, pad0, pad1, pad2);
+    assert_eq!(wgsl_layout(&module, "NeighborParams"), rust);
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["compute_keys", "sort_permutation"]);
 }
 
 #[test]
