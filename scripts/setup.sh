@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # Installs what porosph needs on a fresh Debian machine, only if missing:
-# HDF5 (frames and checkpoints) and pkg-config (to find it). Rust/cargo must
-# be present (rustup).
+# HDF5 (frames and checkpoints), pkg-config (to find it), and a Vulkan
+# driver for the GPU backend: mesa-vulkan-drivers brings the software one
+# (lavapipe), so `--backend gpu` and the GPU tests run on a machine without
+# a GPU (a real GPU's vendor driver is used instead where installed).
+# Rust/cargo must be present (rustup).
 set -euo pipefail
 need=()
-for pkg in libhdf5-dev pkg-config; do
+for pkg in libhdf5-dev pkg-config mesa-vulkan-drivers; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

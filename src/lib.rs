@@ -5,6 +5,7 @@
 //! arrays, Morton-sorted) -> [`pipeline`] (one step = the passes of
 //! PHYSICS.md §6, computed by `porosph-kernels`) -> [`io`] (frames, stats).
 
+pub mod backend;
 pub mod builtin;
 pub mod io;
 pub mod pipeline;

@@ -1,6 +1,8 @@
 //! The `porosph` command line (DESIGN.md, "Interfaces users rely on").
 
 use clap::{Args, Parser, Subcommand};
+use porosph::backend::gpu::GpuBackend;
+use porosph::backend::{BackendKind, GpuPasses};
 use porosph::builtin;
 use porosph::io::checkpoint::{file_kind, inspect_checkpoint, read_checkpoint, FileKind};
 use porosph::io::inspect_frame;
@@ -49,6 +51,15 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Where the offloadable passes run: `cpu` (every pass on the CPU,
+    /// bitwise deterministic) or `gpu` (through wgpu/Vulkan; the passes of
+    /// --gpu-passes on the GPU, the rest on the CPU).
+    #[arg(long, default_value = "cpu", value_name = "cpu|gpu")]
+    backend: BackendKind,
+    /// With --backend gpu: the passes to run on the GPU, by their stats.csv
+    /// names, comma-separated (`pressure_solve`), or `all` (default).
+    #[arg(long, value_name = "PASSES", default_value = "all")]
+    gpu_passes: GpuPasses,
     /// Testing aid: set a fluid velocity to NaN before the step that starts
     /// at step N, to exercise the failure path (diagnostic checkpoint,
     /// non-zero exit).
@@ -222,6 +233,18 @@ impl RunArgs {
         Ok(())
     }
 
+    /// Puts `sim` on the backend of `--backend` (an error if it has no GPU).
+    fn attach_backend(&self, sim: &mut Simulation) -> Result<(), String> {
+        if self.backend == BackendKind::Gpu {
+            let gpu = GpuBackend::new(self.gpu_passes).map_err(|e| e.to_string())?;
+            if !self.quiet {
+                eprintln!("porosph: GPU backend on {}", gpu.ctx.describe());
+            }
+            sim.use_gpu(gpu);
+        }
+        Ok(())
+    }
+
     /// A thread pool of `--threads` threads (default: all cores).
     fn pool(&self) -> Result<rayon::ThreadPool, String> {
         let mut b = rayon::ThreadPoolBuilder::new();
@@ -257,6 +280,7 @@ fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), St
     a.pool()?.install(|| {
         let origin = scene.origin.clone();
         let mut sim = Simulation::new(scene);
+        a.attach_backend(&mut sim)?;
         if !a.quiet {
             eprintln!(
                 "porosph: {origin}: {} fluid + {} wall particles, {} threads, output in {}",
@@ -336,6 +360,7 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
     };
     a.pool()?.install(|| {
         let mut sim = Simulation::from_saved_state(ckpt.state).map_err(|e| format!("{}: {e}", path.display()))?;
+        a.attach_backend(&mut sim)?;
         if !a.quiet {
             eprintln!(
                 "porosph: resuming {} at step {step} (t = {time} s): {} fluid + {} wall particles, \

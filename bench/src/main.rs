@@ -18,11 +18,18 @@
 //! correction) run on every particle; their cost is also printed in ns per
 //! particle-step.
 //!
+//! `--backend gpu` runs the passes of `--gpu-passes` (default: all the GPU
+//! backend has) on the GPU through wgpu and also prints their device time
+//! (timestamp queries) per pass and per Jacobi iteration.
+//!
 //! ```sh
 //! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 60 --warmup 10 --threads 2
+//! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 4 --warmup 1 --backend gpu
 //! cargo run --release -p porosph-bench -- --spacing 0.025 --steps 40 --warmup 10 --phases 3
 //! ```
 
+use porosph::backend::gpu::GpuBackend;
+use porosph::backend::{BackendKind, GpuPasses};
 use porosph::pipeline::{Simulation, PASSES};
 use porosph::scene::Scene;
 use std::io::Write;
@@ -37,6 +44,8 @@ struct Args {
     dt: f32,
     phases: usize,
     json: Option<String>,
+    backend: BackendKind,
+    gpu_passes: GpuPasses,
 }
 
 fn parse() -> Result<Args, String> {
@@ -49,6 +58,8 @@ fn parse() -> Result<Args, String> {
         dt: 0.001,
         phases: 1,
         json: None,
+        backend: BackendKind::Cpu,
+        gpu_passes: GpuPasses::ALL,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -66,9 +77,12 @@ fn parse() -> Result<Args, String> {
             "--dt" => a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?,
             "--phases" => a.phases = v()?.parse().map_err(|e| format!("--phases: {e}"))?,
             "--json" => a.json = Some(v()?),
+            "--backend" => a.backend = v()?.parse()?,
+            "--gpu-passes" => a.gpu_passes = v()?.parse()?,
             "-h" | "--help" => {
                 return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
-                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--json FILE]"
+                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--json FILE] \
+                            [--backend cpu|gpu] [--gpu-passes LIST]"
                     .into())
             }
             _ => return Err(format!("unknown argument {k}")),
@@ -150,6 +164,18 @@ fn bench(a: &Args) {
     let t0 = Instant::now();
     let mut sim = Simulation::new(scene);
     let setup_s = t0.elapsed().as_secs_f64();
+    if a.backend == BackendKind::Gpu {
+        match GpuBackend::new(a.gpu_passes) {
+            Ok(g) => {
+                eprintln!("GPU backend on {}", g.ctx.describe());
+                sim.use_gpu(g);
+            }
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(2);
+            }
+        }
+    }
     let n = sim.fluid.len();
     eprintln!(
         "{} fluid + {} wall particles, {} phase(s), setup {:.2} s, {} threads",
@@ -160,6 +186,7 @@ fn bench(a: &Args) {
         a.threads
     );
     let mut pass_ms = [0.0f64; PASSES.len()];
+    let mut gpu_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut step_s = Vec::new();
     let mut clean_s = Vec::new();
@@ -186,6 +213,9 @@ fn bench(a: &Args) {
             for (acc, v) in pass_ms.iter_mut().zip(st.times.ms) {
                 *acc += v;
             }
+            for (acc, v) in gpu_ms.iter_mut().zip(st.times.gpu_ms) {
+                *acc += v;
+            }
         }
     }
     step_s.sort_by(f64::total_cmp);
@@ -210,9 +240,17 @@ fn bench(a: &Args) {
     println!("mean iterations      {:.2}", iters as f64 / m);
     println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
     println!("bytes/particle       {:.0}", sim.bytes_per_particle());
-    println!("ms per pass (mean):");
-    for (p, v) in PASSES.iter().zip(pass_ms) {
-        println!("  {:<16} {:8.2}", p, v / m);
+    println!("backend              {}", a.backend);
+    println!("ms per pass (mean; wall, and device time of passes on the GPU):");
+    for ((p, v), g) in PASSES.iter().zip(pass_ms).zip(gpu_ms) {
+        if g > 0.0 {
+            println!("  {:<16} {:8.2}  (GPU device {:.2})", p, v / m, g / m);
+        } else {
+            println!("  {:<16} {:8.2}", p, v / m);
+        }
+    }
+    if let Some(k) = PASSES.iter().position(|q| *q == "pressure_solve") {
+        println!("pressure_solve ms per Jacobi iteration {:.3}", pass_ms[k] / iters.max(1) as f64);
     }
     if a.phases > 1 {
         println!("mixture passes, ns per particle-step:");
@@ -228,7 +266,7 @@ fn bench(a: &Args) {
             "{{\"fluid_particles\": {n}, \"phases\": {}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \
              \"particle_steps_per_s\": {:.0}, \"mean_iterations\": {:.2}, \"bytes_per_particle\": {:.0}, \
-             \"median_s_clean\": {}, \"clean_steps\": {}, \"ms_per_pass\": {{{}}}}}",
+             \"median_s_clean\": {}, \"clean_steps\": {}, \"backend\": \"{}\", \"ms_per_pass\": {{{}}}}}",
             a.phases,
             a.spacing,
             a.threads,
@@ -242,6 +280,7 @@ fn bench(a: &Args) {
             sim.bytes_per_particle(),
             median_clean.map_or("null".to_string(), |v| format!("{v:.5}")),
             clean_s.len(),
+            a.backend,
             passes.join(", ")
         );
         match std::fs::OpenOptions::new().create(true).append(true).open(path) {

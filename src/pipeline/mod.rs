@@ -2,6 +2,7 @@
 //! Algorithm 1), each timed by name. [`Simulation`] owns the particle store,
 //! the neighbour structures and the per-step arena.
 
+mod backend;
 mod restore;
 mod setup;
 pub mod solid;
@@ -131,6 +132,10 @@ struct Workspace {
     sb: PairLists,
     /// 0..number of solids (the identity row map of the solid rows).
     solid_rows: Vec<u32>,
+    /// The GPU backend, if the run uses one (`Simulation::use_gpu`).
+    gpu: Option<Box<crate::backend::gpu::GpuBackend>>,
+    /// Why the GPU failed during the last step (reported as a step error).
+    gpu_error: Option<String>,
 }
 
 /// A running simulation: state, time, and what it needs to step.

@@ -8,6 +8,7 @@
 use super::solid::SolidModel;
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
+use crate::backend::gpu::{SolveInput, SolveOutput, SolveSettings};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use glam::Vec3;
@@ -62,6 +63,9 @@ impl Simulation {
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
         let mut stats = step_passes(params, fluid, walls, bodies, work, arena, dt);
         arena.reset();
+        if let Some(reason) = work.gpu_error.take() {
+            return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
+        }
         self.time += dt as f64;
         self.step += 1;
         let t = std::time::Instant::now();
@@ -199,10 +203,28 @@ fn step_passes(
     let ns = solids.len();
 
     // Pass 0: Morton sort of the fluid, grid, neighbour pairs.
+    let mut gpu_ms = 0.0;
     tm.time(pass::NEIGHBORS, || {
-        w.keys.resize(n, 0);
-        compute_keys(&fluid.x, &fluid.y, &fluid.z, 1.0 / support, &mut w.keys);
-        sort_permutation(&w.keys, &mut w.sort, &mut w.perm);
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        // The keys and sort on the GPU (bitwise the CPU's order), or here;
+        // a GPU failure is reported after the step, which completes on the CPU.
+        let gpu = w.gpu.as_deref_mut().filter(|g| g.passes.neighbors);
+        let sorted = match gpu.map(|g| g.sort_permutation(fp, 1.0 / support, &mut w.sort, &mut w.perm)) {
+            Some(Ok(ms)) => {
+                gpu_ms = ms.unwrap_or(0.0);
+                true
+            }
+            Some(Err(e)) => {
+                w.gpu_error = Some(format!("GPU neighbour sort failed: {e}"));
+                false
+            }
+            None => false,
+        };
+        if !sorted {
+            w.keys.resize(n, 0);
+            compute_keys(&fluid.x, &fluid.y, &fluid.z, 1.0 / support, &mut w.keys);
+            sort_permutation(&w.keys, &mut w.sort, &mut w.perm);
+        }
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(&w.perm, &mut w.reorder);
         }
@@ -241,6 +263,7 @@ fn step_passes(
         }
     });
     let fs_pairs = (ns > 0).then_some(&w.fs);
+    tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
 
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
     // mu_m = sum_k alpha_k mu_k, alpha_f = sum_k alpha_k; m = rho_fm h^3 and
@@ -447,7 +470,47 @@ fn step_passes(
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (diag[i] != 0.0) as u32 as f64).max(1.0);
     let fs_pairs = (ns > 0).then_some(&w.fs);
+    let mut gpu_ms = 0.0;
     tm.time(pass::PRESSURE_SOLVE, || {
+        // The GPU solve has fluid and wall rows only: with solids the solve
+        // stays on the CPU.
+        if let Some(gpu) = w.gpu.as_deref_mut().filter(|g| g.passes.pressure_solve && ns == 0) {
+            // The same loop on the GPU (shaders/iisph.wgsl), data resident.
+            let settings = SolveSettings {
+                dt,
+                omega: p.omega,
+                min_iterations: p.min_iterations,
+                max_iterations: p.max_iterations,
+                max_density_error: p.max_density_error,
+                rows_active: rows_active as f32,
+            };
+            let inp = SolveInput {
+                support,
+                fluid_grid: &w.fluid_grid,
+                wall_grid: &w.wall_grid,
+                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                walls: Points { x: &walls.x, y: &walls.y, z: &walls.z },
+                vol,
+                vm,
+                rows: Rows { source: src, diag },
+                vol_wall: vol_b_full,
+                active: &w.active,
+                wall_rows: Rows { source: src_b, diag: diag_b },
+                settings,
+            };
+            let ap = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+            let out = SolveOutput { p: &mut fluid.pressure, p_wall: &mut walls.pressure, ap };
+            match gpu.pressure_solve(&inp, out) {
+                Ok(r) => {
+                    st.iterations = r.iterations;
+                    st.density_error = r.density_error;
+                    gpu_ms = r.gpu_ms.unwrap_or(0.0);
+                    return;
+                }
+                // Reported after the step, which completes on the CPU.
+                Err(e) => w.gpu_error = Some(format!("GPU pressure solve failed: {e}")),
+            }
+        }
         let mut it = 0;
         loop {
             let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
@@ -483,6 +546,7 @@ fn step_passes(
         let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
         iisph::pressure_acceleration(&w.ff, &w.fb, fs, vm, &fluid.pressure, &walls.pressure, out);
     });
+    tm.gpu_ms[pass::PRESSURE_SOLVE] = gpu_ms;
 
     // Pass 8: the solids, with the fluid's pressure force (the reaction of
     // the solid terms of a^p) and gravity as external acceleration.

@@ -49,6 +49,9 @@ pub mod pass {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PassTimes {
     pub ms: [f64; PASSES.len()],
+    /// Device milliseconds (timestamp queries) of the passes that ran on
+    /// the GPU; 0 for a pass on the CPU (`stats.csv`: `gpu_ms_<pass>`).
+    pub gpu_ms: [f64; PASSES.len()],
 }
 
 impl PassTimes {

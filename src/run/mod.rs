@@ -9,6 +9,7 @@ mod frame;
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
 pub use frame::kind;
 
+use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;
 use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
@@ -133,7 +134,8 @@ impl From<IoError> for RunError {
 
 /// Header of `stats.csv` for a scene with `phases`: then `volume_<phase>`
 /// (m^3, [`Simulation::phase_volumes`]) per phase in scene order, and
-/// `ms_<pass>` per pass.
+/// `ms_<pass>` per pass, `ms_step`, and `gpu_ms_<pass>` (device time, 0
+/// on the CPU) per pass the GPU backend can run.
 pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
     let mut c: Vec<String> = [
         "step",
@@ -153,6 +155,7 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
     c.extend(phases.iter().map(|p| format!("volume_{}", p.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
+    c.extend(GPU_PASS_NAMES.iter().map(|p| format!("gpu_ms_{p}")));
     c
 }
 
@@ -270,6 +273,9 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         row.extend(sim.phase_volumes());
         row.extend(st.times.ms);
         row.push(ms_step);
+        row.extend(
+            GPU_PASS_NAMES.iter().map(|name| st.times.gpu_ms[PASSES.iter().position(|p| p == name).unwrap_or(0)]),
+        );
         stats.row(&row)?;
         if sim.time >= next_frame - 1e-9 {
             write(sim, &mut frames, &mut series)?;

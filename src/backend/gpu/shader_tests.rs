@@ -1,0 +1,98 @@
+//! Every WGSL file under `shaders/` compiles (parse and validation by naga,
+//! wgpu's shader compiler, no device needed), and each `#[repr(C)]`
+//! parameter struct has the size and field offsets of its WGSL twin.
+
+use super::iisph::IisphParams;
+use super::neighbors::NeighborParams;
+use super::SHADERS;
+use std::mem::{offset_of, size_of};
+use std::path::PathBuf;
+
+fn shaders_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("shaders")
+}
+
+fn compile(name: &str, src: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
+    module
+}
+
+#[test]
+fn every_wgsl_file_compiles() {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(shaders_dir())
+        .expect("shaders/")
+        .map(|e| e.expect("dir entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "wgsl"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty());
+    for f in &files {
+        let src = std::fs::read_to_string(f).expect("read shader");
+        compile(&f.display().to_string(), &src);
+        let name = f.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        assert!(SHADERS.iter().any(|(n, s)| *n == name && *s == src), "{name} is not embedded in SHADERS");
+    }
+}
+
+/// (size, [(member, offset)]) of WGSL struct `name` in `module`.
+fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    let ty = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).map(|(_, t)| t);
+    match ty.map(|t| &t.inner) {
+        Some(naga::TypeInner::Struct { members, span }) => {
+            (*span, members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect())
+        }
+        _ => panic!("no struct {name} in the shader"),
+    }
+}
+
+macro_rules! rust_layout {
+    ($t:ty, $($f:ident),* $(,)?) => {
+        (size_of::<$t>() as u32, vec![$((stringify!($f).to_string(), offset_of!($t, $f) as u32)),*])
+    };
+}
+
+#[test]
+fn iisph_params_layout_matches_wgsl() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "iisph.wgsl").expect("iisph.wgsl");
+    let module = compile("iisph.wgsl", src);
+    let rust = rust_layout!(
+        IisphParams,
+        n_fluid,
+        n_active,
+        min_iterations,
+        max_iterations,
+        support,
+        inv_support,
+        kernel_k,
+        kernel_l,
+        dt,
+        omega,
+        max_density_error,
+        rows_active,
+    );
+    assert_eq!(wgsl_layout(&module, "IisphParams"), rust);
+}
+
+#[test]
+fn neighbor_params_layout_matches_wgsl() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "neighbors.wgsl").expect("neighbors.wgsl");
+    let module = compile("neighbors.wgsl", src);
+    let rust = rust_layout!(NeighborParams, n, n_pow2, k, j, inv_cell, pad0, pad1, pad2);
+    assert_eq!(wgsl_layout(&module, "NeighborParams"), rust);
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["compute_keys", "sort_permutation"]);
+}
+
+#[test]
+fn iisph_entry_points_are_the_cpu_pass_names() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "iisph.wgsl").expect("iisph.wgsl");
+    let module = compile("iisph.wgsl", src);
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    // The twins of porosph_kernels::iisph::{pressure_acceleration, fluid_jacobi, wall_jacobi}.
+    for f in ["pressure_acceleration", "fluid_jacobi", "wall_jacobi"] {
+        assert!(names.contains(&f), "{f} missing from {names:?}");
+    }
+}

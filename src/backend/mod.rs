@@ -1,0 +1,90 @@
+//! Backends: who computes a pass. The CPU backend is the `porosph-kernels`
+//! passes the pipeline calls directly; the GPU backend ([`gpu`]) runs the
+//! offloaded passes (PHYSICS.md §6: neighbour search, the IISPH Jacobi
+//! loop, drift velocities) through wgpu, and the rest stays on the CPU.
+//! A run picks `--backend cpu|gpu` and, for studies, which passes go to the
+//! GPU (`--gpu-passes`).
+
+pub mod gpu;
+
+use std::fmt;
+use std::str::FromStr;
+
+/// Where a run computes its passes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BackendKind {
+    /// Every pass on the CPU (bitwise deterministic, exact restart).
+    #[default]
+    Cpu,
+    /// The passes of a [`GpuPasses`] set on the GPU, the rest on the CPU.
+    Gpu,
+}
+
+impl FromStr for BackendKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "cpu" => Ok(Self::Cpu),
+            "gpu" => Ok(Self::Gpu),
+            _ => Err(format!("unknown backend `{s}`: expected `cpu` or `gpu`")),
+        }
+    }
+}
+
+impl fmt::Display for BackendKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Cpu => "cpu",
+            Self::Gpu => "gpu",
+        })
+    }
+}
+
+/// The passes the GPU backend can run, by their `stats.csv` names
+/// (`crate::pipeline::PASSES`).
+pub const GPU_PASS_NAMES: [&str; 2] = ["neighbors", "pressure_solve"];
+
+/// Which passes go to the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GpuPasses {
+    /// Pass 0, neighbour search: its Morton keys and sort (the cell ranges
+    /// and pairs the CPU passes read are built on the CPU).
+    pub neighbors: bool,
+    /// Pass 5, the IISPH relaxed Jacobi loop.
+    pub pressure_solve: bool,
+}
+
+impl GpuPasses {
+    /// Every pass the GPU backend implements.
+    pub const ALL: GpuPasses = GpuPasses { neighbors: true, pressure_solve: true };
+}
+
+impl Default for GpuPasses {
+    fn default() -> Self {
+        Self::ALL
+    }
+}
+
+impl FromStr for GpuPasses {
+    type Err = String;
+    /// A comma-separated list of pass names (`neighbors`, `pressure_solve`), or `all`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "all" {
+            return Ok(Self::ALL);
+        }
+        let mut set = GpuPasses { neighbors: false, pressure_solve: false };
+        for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match name {
+                "neighbors" => set.neighbors = true,
+                "pressure_solve" => set.pressure_solve = true,
+                _ => {
+                    return Err(format!(
+                        "`{name}` is not a pass the GPU backend runs: expected a comma-separated list of {} or `all`",
+                        GPU_PASS_NAMES.join(", ")
+                    ))
+                }
+            }
+        }
+        Ok(set)
+    }
+}
