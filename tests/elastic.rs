@@ -6,6 +6,7 @@
 mod common;
 
 use glam::{Mat3, Quat, Vec3};
+use porosph::io::ArrayData;
 use porosph::pipeline::Simulation;
 use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::{deform, forces, stress_rl, Deformation, Lame, RestState};
@@ -270,4 +271,26 @@ fn cantilever_tip_deflection_matches_euler_bernoulli() {
         100.0 * (measured / delta - 1.0)
     );
     assert!((measured / delta - 1.0).abs() < 0.10);
+
+    // The frame carries the solid: kind 1, von Mises stress and tr(eps).
+    // Reference for the stress: the clamped-end bending stress of the
+    // beam, M c / I = (q L^2 / 2)(H / 2) / I = 3 rho g L^2 / H = 58.9 kPa
+    // at the surface; the SPH value is smoothed over a support, so the
+    // check is its order of magnitude (within a factor 2).
+    let frame = sim.frame();
+    let array = |name: &str| frame.arrays.iter().find(|a| a.name == name).unwrap_or_else(|| panic!("no {name}"));
+    let ArrayData::U8(kind) = &array("kind").data else { panic!("kind is not u8") };
+    assert_eq!(kind.len(), sim.solids.len());
+    assert!(kind.iter().all(|&k| k == 1));
+    let ArrayData::F32(stress) = &array("stress").data else { panic!("stress is not f32") };
+    let ArrayData::F32(trace) = &array("strain_trace").data else { panic!("strain_trace is not f32") };
+    let max_stress = stress.iter().copied().fold(0.0f32, f32::max);
+    let bending = 3.0 * rho * g * length * length / h_beam;
+    println!("frame: max von Mises {max_stress:.0} Pa (clamp bending stress {bending:.0} Pa), strain trace range {:.2e}..{:.2e}",
+        trace.iter().copied().fold(f32::MAX, f32::min), trace.iter().copied().fold(f32::MIN, f32::max));
+    assert!(max_stress > 0.5 * bending && max_stress < 2.0 * bending);
+    assert!(
+        trace.iter().any(|&t| t > 0.0) && trace.iter().any(|&t| t < 0.0),
+        "a bent beam is stretched and compressed"
+    );
 }

@@ -26,6 +26,7 @@
 //! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 60 --warmup 10 --threads 2
 //! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 4 --warmup 1 --backend gpu
 //! cargo run --release -p porosph-bench -- --spacing 0.025 --steps 40 --warmup 10 --phases 3
+//! cargo run --release -p porosph-bench -- --spacing 0.015625 --steps 60 --warmup 10 --solid
 //! ```
 
 use porosph::backend::gpu::GpuBackend;
@@ -43,6 +44,8 @@ struct Args {
     max_error: f32,
     dt: f32,
     phases: usize,
+    /// Add an elastic block (0.5 m cube, Peer 2018) in the dam's path.
+    solid: bool,
     json: Option<String>,
     backend: BackendKind,
     gpu_passes: GpuPasses,
@@ -57,6 +60,7 @@ fn parse() -> Result<Args, String> {
         max_error: 0.001,
         dt: 0.001,
         phases: 1,
+        solid: false,
         json: None,
         backend: BackendKind::Cpu,
         gpu_passes: GpuPasses::ALL,
@@ -77,11 +81,12 @@ fn parse() -> Result<Args, String> {
             "--dt" => a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?,
             "--phases" => a.phases = v()?.parse().map_err(|e| format!("--phases: {e}"))?,
             "--json" => a.json = Some(v()?),
+            "--solid" => a.solid = true,
             "--backend" => a.backend = v()?.parse()?,
             "--gpu-passes" => a.gpu_passes = v()?.parse()?,
             "-h" | "--help" => {
                 return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
-                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--json FILE] \
+                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--solid] [--json FILE] \
                             [--backend cpu|gpu] [--gpu-passes LIST]"
                     .into())
             }
@@ -126,6 +131,18 @@ container = true
         err = a.max_error,
         fr = fractions.join(", ")
     );
+    let text = if a.solid {
+        text + r#"
+[[solid]]
+name = "block"
+box = { min = [0.0, 0.0, -0.25], max = [0.5, 0.5, 0.25] }
+density = 800.0
+shear_modulus = 1e5
+lame_lambda = 5e4
+"#
+    } else {
+        text
+    };
     Scene::from_toml_str(&text, "<bench dam break>").map_err(|e| e.to_string())
 }
 
@@ -188,6 +205,7 @@ fn bench(a: &Args) {
     let mut pass_ms = [0.0f64; PASSES.len()];
     let mut gpu_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
+    let mut cg_iters = 0u64;
     let mut step_s = Vec::new();
     let mut clean_s = Vec::new();
     let tick = 100.0; // USER_HZ on Linux
@@ -209,6 +227,7 @@ fn bench(a: &Args) {
             wall_s += el;
             step_s.push(el);
             iters += st.iterations as u64;
+            cg_iters += u64::from(st.cg_iterations);
             min_dt = min_dt.min(st.dt);
             for (acc, v) in pass_ms.iter_mut().zip(st.times.ms) {
                 *acc += v;
@@ -227,6 +246,14 @@ fn bench(a: &Args) {
     let (ff, fb) = sim.pair_counts();
     println!("fluid particles      {n}");
     println!("phases               {}", a.phases);
+    if !sim.solids.is_empty() {
+        println!(
+            "solid particles      {} (elastic, Peer 2018); mean CG iterations {:.1}, elasticity {:.1} ns per solid particle-step",
+            sim.solids.len(),
+            cg_iters as f64 / m,
+            pass_ms[PASSES.iter().position(|q| *q == "elasticity").unwrap_or(0)] / m * 1e6 / sim.solids.len() as f64
+        );
+    }
     println!(
         "steps measured       {measured} (after {} warm-up), t = {:.3} s, min dt {:.2e} s",
         a.warmup, sim.time, min_dt
