@@ -396,18 +396,11 @@ pub fn pressure_acceleration(
                 let i = b * BLOCK + q;
                 let pi = F::splat(p_f[i]);
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-                for (blk, p) in [(Some(bf), p_f), (Some(bb), p_b), (bs, p_s)] {
-                    let Some(blk) = blk else { continue };
-                    let r = blk.range(q);
-                    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-                    let mut k = r.start;
-                    while k < r.end {
-                        let s = pi + gather(p, j, k);
-                        sx += s * load(gx, k);
-                        sy += s * load(gy, k);
-                        sz += s * load(gz, k);
-                        k += LANES;
-                    }
+                for (blk, p) in [(bf, p_f), (bb, p_b)] {
+                    pressure_sum(blk, q, p, pi, [&mut sx, &mut sy, &mut sz]);
+                }
+                if let Some(bs) = bs {
+                    pressure_sum(bs, q, p_s, pi, [&mut sx, &mut sy, &mut sz]);
                 }
                 let c = -vm[i];
                 ox[q] = c * sum(sx);
@@ -415,6 +408,22 @@ pub fn pressure_acceleration(
                 oz[q] = c * sum(sz);
             }
         });
+}
+
+/// Adds sum_j (p_i + p_j) g_ij over the pairs of query `q` to `acc`.
+#[inline(always)]
+fn pressure_sum(blk: &PairBlock, q: usize, p: &[f32], pi: F, acc: [&mut F; 3]) {
+    let r = blk.range(q);
+    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    let [sx, sy, sz] = acc;
+    let mut k = r.start;
+    while k < r.end {
+        let s = pi + gather(p, j, k);
+        *sx += s * load(gx, k);
+        *sy += s * load(gy, k);
+        *sz += s * load(gz, k);
+        k += LANES;
+    }
 }
 
 /// The rows of the pressure system: source S and diagonal a_ii.
