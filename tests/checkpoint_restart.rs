@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{assert_same_bits, solid_bits, store_bits, TempDir, FLOATING_BLOCK, TWO_PHASE};
+use common::{assert_same_bits, floating_block, solid_bits, store_bits, TempDir, TWO_PHASE};
 use porosph::io::checkpoint::{
     load_checkpoint, phase_volumes, read_checkpoint, read_checkpoint_with, write_checkpoint, ReadMethod, RunInfo,
 };
@@ -82,9 +82,9 @@ fn resumed_run_with_a_solid_is_bitwise_the_uninterrupted_run() {
     let dir = TempDir::new("restart-solid");
     let ckpt = dir.path("ckpt.h5");
     common::with_threads(2, || {
-        let mut straight = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        let mut straight = Simulation::new(common::scene_text(&floating_block()));
         steps(&mut straight, n + m);
-        let mut first = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        let mut first = Simulation::new(common::scene_text(&floating_block()));
         steps(&mut first, n);
         write_checkpoint(&ckpt, &first, &run_info(), None).unwrap_or_else(|e| panic!("{e}"));
         drop(first);
@@ -98,7 +98,7 @@ fn resumed_run_with_a_solid_is_bitwise_the_uninterrupted_run() {
         assert_eq!(resumed.dt.to_bits(), straight.dt.to_bits());
         assert_same_bits(&store_bits(&resumed.fluid, &resumed.walls), &store_bits(&straight.fluid, &straight.walls));
         assert_same_bits(&solid_bits(&resumed.solids), &solid_bits(&straight.solids));
-        let start = Simulation::new(common::scene_text(FLOATING_BLOCK));
+        let start = Simulation::new(common::scene_text(&floating_block()));
         assert_ne!(solid_bits(&start.solids), solid_bits(&straight.solids));
     });
 }

@@ -4,6 +4,8 @@
 
 mod common;
 
+use common::TankWithBlock;
+
 use glam::{Quat, Vec3};
 use porosph::pipeline::Simulation;
 use std::collections::HashMap;
@@ -53,30 +55,17 @@ fn pressure_surface(sim: &Simulation, x_lo: f32, x_hi: f32, level: f32, d: f32) 
 #[test]
 fn floating_block_settles_at_the_archimedes_depth() {
     let d = 0.01f32;
-    let scene = format!(
-        r#"
-[simulation]
-particle_spacing = {d}
-end_time = 10.0
-max_dt = 0.003
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 1.0
-[[wall]]
-box = {{ min = [0.0, 0.0, 0.0], max = [0.4, 0.4, 0.2] }}
-container = true
-[[fluid]]
-box = {{ min = [0.0, 0.0, 0.0], max = [0.4, 0.2, 0.2] }}
-fractions = {{ water = 1.0 }}
-[[solid]]
-name = "block"
-box = {{ min = [0.1, 0.15, 0.05], max = [0.3, 0.25, 0.15] }}
-density = 600.0
-shear_modulus = 1e5
-lame_lambda = 0.0
-"#
-    );
+    let scene = TankWithBlock {
+        d,
+        tank: [0.4, 0.4, 0.2],
+        water: 0.2,
+        viscosity: 1.0,
+        lo: [0.1, 0.15, 0.05],
+        hi: [0.3, 0.25, 0.15],
+        density: 600.0,
+        lambda: 0.0,
+    }
+    .text();
     let mut sim = Simulation::new(common::scene_text(&scene));
     let expected = 0.6 * 0.1f32;
     let bottom: Vec<usize> = (0..sim.solids.len()).filter(|&i| sim.solids.y0[i] < 0.15 + d).collect();
@@ -146,31 +135,17 @@ fn fluid_inside(sim: &Simulation, min: Vec3, max: Vec3, d: f32) -> usize {
 fn dropped_block_keeps_the_fluid_out_and_stays_stable() {
     let d = 0.01f32;
     let (min, max) = (Vec3::new(0.15, 0.3, 0.04), Vec3::new(0.25, 0.36, 0.12));
-    let scene = format!(
-        r#"
-[simulation]
-particle_spacing = {d}
-end_time = 10.0
-max_dt = 0.003
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 0.01
-[[wall]]
-box = {{ min = [0.0, 0.0, 0.0], max = [0.4, 0.5, 0.16] }}
-container = true
-[[fluid]]
-box = {{ min = [0.0, 0.0, 0.0], max = [0.4, 0.2, 0.16] }}
-fractions = {{ water = 1.0 }}
-[[solid]]
-name = "block"
-box = {{ min = [{}, {}, {}], max = [{}, {}, {}] }}
-density = 700.0
-shear_modulus = 1e5
-lame_lambda = 5e4
-"#,
-        min.x, min.y, min.z, max.x, max.y, max.z
-    );
+    let scene = TankWithBlock {
+        d,
+        tank: [0.4, 0.5, 0.16],
+        water: 0.2,
+        viscosity: 0.01,
+        lo: min.to_array(),
+        hi: max.to_array(),
+        density: 700.0,
+        lambda: 5e4,
+    }
+    .text();
     let mut sim = Simulation::new(common::scene_text(&scene));
     let mut next = 0.0;
     let (mut worst, mut checks, mut lowest, mut max_cg) = (0, 0, f32::MAX, 0);

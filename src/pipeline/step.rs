@@ -129,47 +129,33 @@ impl Simulation {
     }
 
     fn blowup(&self, speed: f32) -> StepError {
-        let f = &self.fluid;
+        let (f, s) = (&self.fluid, &self.solids);
         let limit = self.blowup_speed();
-        let s = &self.solids;
-        let solid_bad = (0..s.len()).find(|&i| {
-            let v = (s.vx[i] * s.vx[i] + s.vy[i] * s.vy[i] + s.vz[i] * s.vz[i]).sqrt();
-            !v.is_finite() || v > limit || !(s.x[i].is_finite() && s.y[i].is_finite() && s.z[i].is_finite())
-        });
-        let fluid_ok = (0..f.len()).all(|i| {
-            let v = (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt();
-            v.is_finite() && v <= limit && f.x[i].is_finite() && f.y[i].is_finite() && f.z[i].is_finite()
-        });
-        if let (Some(b), true) = (solid_bad, fluid_ok) {
-            return StepError {
-                step: self.step,
-                time: self.time,
-                particle: s.id[b],
-                position: [s.x[b], s.y[b], s.z[b]],
-                velocity: [s.vx[b], s.vy[b], s.vz[b]],
-                reason: if speed.is_finite() {
-                    format!("solid velocity exploded ({speed:.3e} m/s > {limit:.3e} m/s)")
-                } else {
-                    "solid velocity is NaN or infinite".to_string()
-                },
-            };
-        }
-        let bad = (0..f.len())
-            .find(|&i| {
-                let s = (f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt();
-                !s.is_finite() || s > limit || !(f.x[i].is_finite() && f.y[i].is_finite() && f.z[i].is_finite())
-            })
-            .unwrap_or(0);
+        let bad = |x: [f32; 3], v: [f32; 3]| {
+            let speed = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            !speed.is_finite() || speed > limit || !x.iter().all(|c| c.is_finite())
+        };
+        let fluid_bad = (0..f.len()).find(|&i| bad([f.x[i], f.y[i], f.z[i]], [f.ux[i], f.uy[i], f.uz[i]]));
+        let solid_bad = (0..s.len()).find(|&i| bad([s.x[i], s.y[i], s.z[i]], [s.vx[i], s.vy[i], s.vz[i]]));
+        // The offending particle: a fluid one if any, else a solid one.
+        let (what, id, position, velocity) = match (fluid_bad, solid_bad) {
+            (None, Some(b)) => ("solid velocity", s.id[b], [s.x[b], s.y[b], s.z[b]], [s.vx[b], s.vy[b], s.vz[b]]),
+            _ if f.is_empty() => ("velocity", 0, [f32::NAN; 3], [f32::NAN; 3]),
+            (b, _) => {
+                let b = b.unwrap_or(0);
+                ("velocity", f.id.get(b).copied().unwrap_or(0), [f.x[b], f.y[b], f.z[b]], [f.ux[b], f.uy[b], f.uz[b]])
+            }
+        };
         StepError {
             step: self.step,
             time: self.time,
-            particle: f.id.get(bad).copied().unwrap_or(0),
-            position: [f.x[bad], f.y[bad], f.z[bad]],
-            velocity: [f.ux[bad], f.uy[bad], f.uz[bad]],
+            particle: id,
+            position,
+            velocity,
             reason: if speed.is_finite() {
-                format!("velocity exploded ({speed:.3e} m/s > {limit:.3e} m/s)")
+                format!("{what} exploded ({speed:.3e} m/s > {limit:.3e} m/s)")
             } else {
-                "velocity is NaN or infinite".to_string()
+                format!("{what} is NaN or infinite")
             },
         }
     }

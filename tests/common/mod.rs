@@ -83,29 +83,67 @@ pub fn solid_bits(solids: &porosph::store::SolidStore) -> Vec<(String, Vec<u32>)
     out
 }
 
-/// A small tank with a floating elastic block (fluid, walls and a solid).
-pub const FLOATING_BLOCK: &str = r#"
+/// A closed tank (inside [0, tank]) filled with water of `viscosity` up to
+/// `water`, holding an elastic block [`lo`, `hi`] of `density` (mu = 1e5 Pa,
+/// lambda = `lambda`), at particle spacing `d`.
+pub struct TankWithBlock {
+    pub d: f32,
+    pub tank: [f32; 3],
+    pub water: f32,
+    pub viscosity: f32,
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+    pub density: f32,
+    pub lambda: f32,
+}
+
+impl TankWithBlock {
+    /// The scene text.
+    pub fn text(&self) -> String {
+        let [tx, ty, tz] = self.tank;
+        let ([ax, ay, az], [bx, by, bz]) = (self.lo, self.hi);
+        format!(
+            r#"
 [simulation]
-particle_spacing = 0.01
-end_time = 1.0
+particle_spacing = {}
+end_time = 10.0
 max_dt = 0.003
 [[phase]]
 name = "water"
 density = 1000.0
-viscosity = 0.01
+viscosity = {}
 [[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.06] }
+box = {{ min = [0.0, 0.0, 0.0], max = [{tx}, {ty}, {tz}] }}
 container = true
 [[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.12, 0.06] }
-fractions = { water = 1.0 }
+box = {{ min = [0.0, 0.0, 0.0], max = [{tx}, {}, {tz}] }}
+fractions = {{ water = 1.0 }}
 [[solid]]
 name = "block"
-box = { min = [0.06, 0.09, 0.0], max = [0.24, 0.17, 0.06] }
-density = 600.0
+box = {{ min = [{ax}, {ay}, {az}], max = [{bx}, {by}, {bz}] }}
+density = {}
 shear_modulus = 1e5
-lame_lambda = 0.0
-"#;
+lame_lambda = {}
+"#,
+            self.d, self.viscosity, self.water, self.density, self.lambda
+        )
+    }
+}
+
+/// A small tank with a floating elastic block (fluid, walls and a solid).
+pub fn floating_block() -> String {
+    TankWithBlock {
+        d: 0.01,
+        tank: [0.3, 0.3, 0.06],
+        water: 0.12,
+        viscosity: 0.01,
+        lo: [0.06, 0.09, 0.0],
+        hi: [0.24, 0.17, 0.06],
+        density: 600.0,
+        lambda: 0.0,
+    }
+    .text()
+}
 
 /// Asserts that two states agree bit for bit in every registered array,
 /// naming the first array and index that differ.
