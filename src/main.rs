@@ -57,7 +57,7 @@ struct RunArgs {
     #[arg(long, default_value = "cpu", value_name = "cpu|gpu")]
     backend: BackendKind,
     /// With --backend gpu: the passes to run on the GPU, by their stats.csv
-    /// names, comma-separated (`pressure_solve`), or `all` (default).
+    /// names, comma-separated (`neighbors`, `pressure_solve`, `drift`), or `all` (default).
     #[arg(long, value_name = "PASSES", default_value = "all")]
     gpu_passes: GpuPasses,
     /// Testing aid: set a fluid velocity to NaN before the step that starts

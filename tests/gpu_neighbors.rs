@@ -50,7 +50,7 @@ fn state_bits(sim: &Simulation) -> Vec<u32> {
 
 #[test]
 fn run_with_the_sort_on_the_gpu_is_bitwise_the_cpu_run() {
-    let passes = GpuPasses { neighbors: true, pressure_solve: false };
+    let passes = GpuPasses { neighbors: true, pressure_solve: false, drift: false };
     let Some(gpu) = gpu_common::backend(passes) else { return };
     let scene = || common::scene_file("two_phase_mixing.toml");
     let mut cpu = Simulation::new(scene());

@@ -42,7 +42,7 @@ impl fmt::Display for BackendKind {
 
 /// The passes the GPU backend can run, by their `stats.csv` names
 /// (`crate::pipeline::PASSES`).
-pub const GPU_PASS_NAMES: [&str; 2] = ["neighbors", "pressure_solve"];
+pub const GPU_PASS_NAMES: [&str; 3] = ["neighbors", "pressure_solve", "drift"];
 
 /// Which passes go to the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,11 +52,14 @@ pub struct GpuPasses {
     pub neighbors: bool,
     /// Pass 5, the IISPH relaxed Jacobi loop.
     pub pressure_solve: bool,
+    /// Pass 10, the drift velocities of the mixture model (two or more
+    /// phases; the maximum drift speed is taken on the CPU).
+    pub drift: bool,
 }
 
 impl GpuPasses {
     /// Every pass the GPU backend implements.
-    pub const ALL: GpuPasses = GpuPasses { neighbors: true, pressure_solve: true };
+    pub const ALL: GpuPasses = GpuPasses { neighbors: true, pressure_solve: true, drift: true };
 }
 
 impl Default for GpuPasses {
@@ -67,16 +70,17 @@ impl Default for GpuPasses {
 
 impl FromStr for GpuPasses {
     type Err = String;
-    /// A comma-separated list of pass names (`neighbors`, `pressure_solve`), or `all`.
+    /// A comma-separated list of pass names (`neighbors`, `pressure_solve`, `drift`), or `all`.
     fn from_str(s: &str) -> Result<Self, String> {
         if s == "all" {
             return Ok(Self::ALL);
         }
-        let mut set = GpuPasses { neighbors: false, pressure_solve: false };
+        let mut set = GpuPasses { neighbors: false, pressure_solve: false, drift: false };
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             match name {
                 "neighbors" => set.neighbors = true,
                 "pressure_solve" => set.pressure_solve = true,
+                "drift" => set.drift = true,
                 _ => {
                     return Err(format!(
                         "`{name}` is not a pass the GPU backend runs: expected a comma-separated list of {} or `all`",

@@ -8,13 +8,14 @@
 use super::solid::SolidModel;
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::backend::gpu::{SolveInput, SolveOutput, SolveSettings};
+use crate::backend::gpu::{DriftInput, DriftOutput, GpuBackend, SolveInput, SolveOutput, SolveSettings};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
+use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, SolidPairs, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
@@ -571,6 +572,13 @@ fn step_passes(
             rest_density,
             alpha_next,
             Buffers { pair_limit: &mut w.pair_limit, pair_flux: &mut w.pair_flux },
+            w.gpu.as_deref_mut().filter(|g| g.passes.drift).map(|backend| GpuDrift {
+                backend,
+                grid: &w.fluid_grid,
+                vol,
+                support,
+                error: &mut w.gpu_error,
+            }),
             tm,
         );
         st.max_drift_speed = ms;
@@ -612,6 +620,17 @@ fn step_passes(
     st
 }
 
+/// Pass 10 on the GPU (`--gpu-passes drift`): the backend, the fluid grid
+/// of the sort, the current volumes the pair lists were scaled by, the
+/// support, and where a failure is reported (the pass then runs on the CPU).
+struct GpuDrift<'a> {
+    backend: &'a mut GpuBackend,
+    grid: &'a CellGrid,
+    vol: &'a [f32],
+    support: f32,
+    error: &'a mut Option<String>,
+}
+
 /// Passes 10-12 (PHYSICS.md §6) of a step with two or more phases: drift
 /// velocities (P-Eq. 11 without its porous term), the drift momentum term
 /// (added to `ap`, which holds a^p on entry), and the transport of the
@@ -630,6 +649,7 @@ fn mixture_passes(
     rest_density: &[f32],
     alpha_next: &mut [f32],
     buffers: Buffers,
+    gpu: Option<GpuDrift>,
     tm: &mut super::PassTimes,
 ) -> f32 {
     let n = fluid.len();
@@ -644,12 +664,44 @@ fn mixture_passes(
     let fx = zeros(arena, np * n);
     let fy = zeros(arena, np * n);
     let fz = zeros(arena, np * n);
+    let mut gpu_ms = 0.0;
     let max_drift = tm.time(pass::DRIFT, || {
         let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, alpha_f, pf);
         }
         let p_per_fraction = if p.fraction_pressure { Some(&*pf) } else { None };
+        if let Some(g) = gpu {
+            // The same three gathers on the GPU (shaders/drift.wgsl).
+            let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
+                density: p.phase_density[k],
+                tau: p.phase_drift_tau[k],
+                sigma: p.phase_drift_sigma[k],
+            }));
+            let inp = DriftInput {
+                support: g.support,
+                fluid_grid: g.grid,
+                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                vol: g.vol,
+                alpha,
+                alpha_f,
+                p_per_fraction,
+                a_visc,
+                a_p: Vel { x: apx, y: apy, z: apz },
+                phases,
+                conservative: p.conservative_transport,
+            };
+            let out =
+                DriftOutput { ux: &mut *ux, uy: &mut *uy, uz: &mut *uz, fx: &mut *fx, fy: &mut *fy, fz: &mut *fz };
+            match g.backend.drift(&inp, out) {
+                Ok(ms) => {
+                    gpu_ms = ms.unwrap_or(0.0);
+                    return drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n);
+                }
+                // Reported after the step; the pass runs on the CPU.
+                Err(e) => *g.error = Some(format!("GPU drift pass failed: {e}")),
+            }
+        }
         let inp = PhaseVelocityInput { ff, alpha_f, p_per_fraction, a_visc, a_p: Vel { x: apx, y: apy, z: apz } };
         let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
         let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
@@ -678,6 +730,7 @@ fn mixture_passes(
         }
         drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n)
     });
+    tm.gpu_ms[pass::DRIFT] = gpu_ms;
     let u_drift = phase_vel(arena, ux, uy, uz, n);
 
     // Pass 11: a^Dm (PHYSICS.md §4.1, sign per §8.15), added to a^p.

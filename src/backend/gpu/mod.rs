@@ -4,12 +4,14 @@
 //! a pass is `shaders/<pass>.wgsl`, the twin of `kernels/src/<pass>.rs`.
 
 mod buffers;
+pub mod drift;
 pub mod iisph;
 pub mod neighbors;
 pub mod ranges;
 #[cfg(test)]
 mod shader_tests;
 
+pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
 pub use neighbors::{NeighborParams, NeighborsGpu};
 
@@ -17,7 +19,8 @@ use super::GpuPasses;
 use std::fmt;
 
 /// The WGSL sources, by file name (compiled into the binary).
-pub const SHADERS: [(&str, &str); 2] = [
+pub const SHADERS: [(&str, &str); 3] = [
+    ("drift.wgsl", include_str!("../../../shaders/drift.wgsl")),
     ("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl")),
     ("neighbors.wgsl", include_str!("../../../shaders/neighbors.wgsl")),
 ];
@@ -111,12 +114,13 @@ pub struct GpuBackend {
     pub passes: GpuPasses,
     iisph: Option<IisphGpu>,
     neighbors: Option<NeighborsGpu>,
+    drift: Option<DriftGpu>,
 }
 
 impl GpuBackend {
     /// Opens the GPU (an error says why there is none).
     pub fn new(passes: GpuPasses) -> Result<Self, GpuError> {
-        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None })
+        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None })
     }
 
     /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
@@ -135,5 +139,11 @@ impl GpuBackend {
     pub fn pressure_solve(&mut self, input: &SolveInput, out: SolveOutput) -> Result<SolveReport, GpuError> {
         let ctx = &self.ctx;
         self.iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, input, out)
+    }
+
+    /// The drift velocities (pass 10) on the GPU; see [`DriftGpu::run`].
+    pub fn drift(&mut self, input: &DriftInput, out: DriftOutput) -> Result<Option<f64>, GpuError> {
+        let ctx = &self.ctx;
+        self.drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, input, out)
     }
 }

@@ -2,6 +2,7 @@
 //! wgpu's shader compiler, no device needed), and each `#[repr(C)]`
 //! parameter struct has the size and field offsets of its WGSL twin.
 
+use super::drift::DriftParams;
 use super::iisph::IisphParams;
 use super::neighbors::NeighborParams;
 use super::SHADERS;
@@ -95,4 +96,26 @@ fn iisph_entry_points_are_the_cpu_pass_names() {
     for f in ["pressure_acceleration", "fluid_jacobi", "wall_jacobi"] {
         assert!(names.contains(&f), "{f} missing from {names:?}");
     }
+}
+
+#[test]
+fn drift_params_layout_and_entry_points_match_wgsl() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "drift.wgsl").expect("drift.wgsl");
+    let module = compile("drift.wgsl", src);
+    let rust = rust_layout!(
+        DriftParams,
+        n,
+        n_phases,
+        fraction_pressure,
+        conservative,
+        support,
+        inv_support,
+        kernel_k,
+        kernel_l,
+        phase,
+    );
+    assert_eq!(wgsl_layout(&module, "DriftParams"), rust);
+    // The twins of porosph_kernels::drift::{phase_velocity, mixture_velocity, drift_velocity}.
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["phase_velocity", "mixture_velocity", "drift_velocity"]);
 }
