@@ -14,15 +14,17 @@ mod shader_tests;
 pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
 pub use neighbors::{NeighborParams, NeighborsGpu};
+pub use ranges::{RangesGpu, RangesParams};
 
 use super::GpuPasses;
 use std::fmt;
 
 /// The WGSL sources, by file name (compiled into the binary).
-pub const SHADERS: [(&str, &str); 3] = [
+pub const SHADERS: [(&str, &str); 4] = [
     ("drift.wgsl", include_str!("../../../shaders/drift.wgsl")),
     ("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl")),
     ("neighbors.wgsl", include_str!("../../../shaders/neighbors.wgsl")),
+    ("ranges.wgsl", include_str!("../../../shaders/ranges.wgsl")),
 ];
 
 /// Why the GPU backend cannot run.

@@ -5,6 +5,7 @@
 use super::drift::DriftParams;
 use super::iisph::IisphParams;
 use super::neighbors::NeighborParams;
+use super::ranges::RangesParams;
 use super::SHADERS;
 use std::mem::{offset_of, size_of};
 use std::path::PathBuf;
@@ -118,4 +119,15 @@ fn drift_params_layout_and_entry_points_match_wgsl() {
     // The twins of porosph_kernels::drift::{phase_velocity, mixture_velocity, drift_velocity}.
     let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(names, ["phase_velocity", "mixture_velocity", "drift_velocity"]);
+}
+
+#[test]
+fn ranges_params_layout_and_entry_points_match_wgsl() {
+    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "ranges.wgsl").expect("ranges.wgsl");
+    let module = compile("ranges.wgsl", src);
+    let rust = rust_layout!(RangesParams, n_fluid_cells, n_wall_cells, n_active, inv_cell);
+    assert_eq!(wgsl_layout(&module, "RangesParams"), rust);
+    // The twins of backend::gpu::ranges::{fluid_rows, wall_rows}.
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["fluid_rows", "wall_rows"]);
 }
