@@ -110,73 +110,9 @@ pub struct DriftGpu {
 impl DriftGpu {
     /// Compiles `shaders/drift.wgsl` and builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.shader("drift.wgsl");
-        let mut entries = vec![wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        }];
-        for (k, &read_only) in READ_ONLY.iter().enumerate() {
-            entries.push(wgpu::BindGroupLayoutEntry {
-                binding: k as u32 + 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            });
-        }
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("drift"), entries: &entries });
-        let pl = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("drift"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipelines = ENTRY_POINTS
-            .iter()
-            .map(|e| {
-                ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(e),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some(e),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-            .collect();
-        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("drift params"),
-            size: std::mem::size_of::<DriftParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let queries = ctx.timestamps.then(|| {
-            let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("drift timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            });
-            let mut resolve = GpuArray::new(
-                ctx,
-                "drift timestamps",
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            );
-            let mut read = GpuArray::new(ctx, "drift timestamps read", READBACK);
-            // Small buffers: these cannot fail.
-            let _ = resolve.reserve(ctx, 16, false);
-            let _ = read.reserve(ctx, 16, false);
-            (set, resolve, read)
-        });
+        let (layout, pipelines, params) =
+            ctx.compute_pipelines("drift.wgsl", &READ_ONLY, &ENTRY_POINTS, std::mem::size_of::<DriftParams>());
+        let queries = ctx.timestamp_queries("drift timestamps", "drift timestamps read", 2);
         Self {
             pipelines,
             layout,

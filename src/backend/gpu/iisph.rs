@@ -223,74 +223,9 @@ const MAX_QUERIES: u32 = 2 * (1000 / ITERATIONS_PER_SUBMIT + 2);
 impl IisphGpu {
     /// Compiles `shaders/iisph.wgsl` and builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.shader("iisph.wgsl");
-        let mut entries = vec![wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        }];
-        for (k, &read_only) in READ_ONLY.iter().enumerate() {
-            entries.push(wgpu::BindGroupLayoutEntry {
-                binding: k as u32 + 1,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            });
-        }
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("iisph"), entries: &entries });
-        let pl = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("iisph"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipelines = ENTRY_POINTS
-            .iter()
-            .map(|e| {
-                ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(e),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some(e),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-            .collect();
-        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("iisph params"),
-            size: std::mem::size_of::<IisphParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let queries = ctx.timestamps.then(|| {
-            let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("iisph timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: MAX_QUERIES,
-            });
-            let mut resolve = GpuArray::new(
-                ctx,
-                "iisph timestamps",
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            );
-            let mut read = GpuArray::new(ctx, "iisph timestamps read", READBACK);
-            let bytes = 8 * u64::from(MAX_QUERIES);
-            // Small buffers: these cannot fail.
-            let _ = resolve.reserve(ctx, bytes, false);
-            let _ = read.reserve(ctx, bytes, false);
-            (set, resolve, read)
-        });
+        let (layout, pipelines, params) =
+            ctx.compute_pipelines("iisph.wgsl", &READ_ONLY, &ENTRY_POINTS, std::mem::size_of::<IisphParams>());
+        let queries = ctx.timestamp_queries("iisph timestamps", "iisph timestamps read", MAX_QUERIES);
         Self {
             pipelines,
             layout,

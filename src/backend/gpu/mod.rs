@@ -107,6 +107,84 @@ impl GpuContext {
             source: wgpu::ShaderSource::Wgsl(src.into()),
         })
     }
+
+    /// The compute pipelines of `shaders/<file>`, one per entry point, over
+    /// one bind group: binding 0 a uniform parameter block of `params`
+    /// bytes, bindings 1.. storage buffers (read-only as `read_only` says).
+    /// Returns the bind group layout, the pipelines and the parameter buffer.
+    pub fn compute_pipelines(
+        &self,
+        file: &str,
+        read_only: &[bool],
+        entry_points: &[&str],
+        params: usize,
+    ) -> (wgpu::BindGroupLayout, Vec<wgpu::ComputePipeline>, wgpu::Buffer) {
+        let label = file.trim_end_matches(".wgsl");
+        let module = self.shader(file);
+        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let mut entries = vec![buffer(0, wgpu::BufferBindingType::Uniform)];
+        for (k, &read_only) in read_only.iter().enumerate() {
+            entries.push(buffer(k as u32 + 1, wgpu::BufferBindingType::Storage { read_only }));
+        }
+        let layout = self
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries });
+        let pl = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipelines = entry_points
+            .iter()
+            .map(|e| {
+                self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(e),
+                    layout: Some(&pl),
+                    module: &module,
+                    entry_point: Some(e),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+            .collect();
+        let params = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(&format!("{label} params")),
+            size: params as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (layout, pipelines, params)
+    }
+
+    /// `count` timestamp queries with their resolve (`label`) and read-back
+    /// (`read_label`) buffers, or `None` where the adapter has no timestamps.
+    pub fn timestamp_queries(
+        &self,
+        label: &'static str,
+        read_label: &'static str,
+        count: u32,
+    ) -> Option<(wgpu::QuerySet, buffers::GpuArray, buffers::GpuArray)> {
+        self.timestamps.then(|| {
+            let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some(label),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            });
+            let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
+            let mut resolve = buffers::GpuArray::new(self, label, usage);
+            let mut read = buffers::GpuArray::new(self, read_label, buffers::READBACK);
+            let bytes = 8 * u64::from(count);
+            // Small buffers: these cannot fail.
+            let _ = resolve.reserve(self, bytes, false);
+            let _ = read.reserve(self, bytes, false);
+            (set, resolve, read)
+        })
+    }
 }
 
 /// The GPU backend of a run: the device, which passes it runs, and the

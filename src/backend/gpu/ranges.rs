@@ -105,44 +105,8 @@ pub struct RangesGpu {
 impl RangesGpu {
     /// Compiles `shaders/ranges.wgsl` and builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.shader("ranges.wgsl");
-        let buffer = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        let mut entries = vec![buffer(0, wgpu::BufferBindingType::Uniform)];
-        for (k, &read_only) in READ_ONLY.iter().enumerate() {
-            entries.push(buffer(k as u32 + 1, wgpu::BufferBindingType::Storage { read_only }));
-        }
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("ranges"), entries: &entries });
-        let pl = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("ranges"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipelines = ENTRY_POINTS
-            .iter()
-            .map(|e| {
-                ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(e),
-                    layout: Some(&pl),
-                    module: &module,
-                    entry_point: Some(e),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-            .collect();
-        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ranges params"),
-            size: std::mem::size_of::<RangesParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (layout, pipelines, params) =
+            ctx.compute_pipelines("ranges.wgsl", &READ_ONLY, &ENTRY_POINTS, std::mem::size_of::<RangesParams>());
         Self {
             pipelines,
             layout,
