@@ -171,6 +171,13 @@ pub struct VelMut<'a> {
     pub z: &'a mut [f32],
 }
 
+impl VelMut<'_> {
+    /// The same arrays, borrowed again for a shorter time.
+    pub fn reborrow(&mut self) -> VelMut<'_> {
+        VelMut { x: &mut *self.x, y: &mut *self.y, z: &mut *self.z }
+    }
+}
+
 /// Per-particle inputs of the fluid rows of the system.
 #[derive(Clone, Copy)]
 pub struct FluidRows<'a> {
@@ -195,12 +202,25 @@ pub struct FluidRows<'a> {
     pub inv_mass_solid: &'a [f32],
 }
 
-/// Rows below this outer fraction take no part in the solve (PHYSICS.md §2.4).
+/// Particles below this outer fraction have no outer volume: V0 = 0 in the
+/// solve (PHYSICS.md §2.4), and no drift.
 pub const MIN_ALPHA_F: f32 = 0.01;
+
+/// A fluid particle below this outer fraction has no row of its own in the
+/// pressure solve (p = 0), though its outer volume alpha_f h^3 still counts
+/// in its neighbours' rows [inferred]. A row's diagonal falls as alpha_f^2
+/// and its source as alpha_f, so its pressure grows as 1 / alpha_f while
+/// its pair volumes fall only as alpha_f: a particle that is mostly inside
+/// a porous solid pushes its neighbours as hard as a full one. Measured in
+/// a soaking block (`tests/porous.rs`): 8.8e8 Pa at alpha_f = 0.011 against
+/// 7e3 Pa in the bulk, and the run blew up with a cut at 0.2; with 0.5 the
+/// largest fluid pressure stays at the bulk's.
+pub const MIN_ROW_ALPHA_F: f32 = 0.5;
 
 /// Pass 4c, fluid rows. First scales the fluid and wall pair gradients in
 /// place by the harmonic pair volume (g_ij = Vbar_ij grad W_ij), then forms
-/// the source S_f = alpha_f (1 + dt div*_f) - V0_f/V_f (P-Eq. 29) with
+/// the source S_f = alpha_f (1 + dt div*_f - V0_f/V_f) ([AC] `ComputeSource`;
+/// PHYSICS.md §8.4) with
 /// div*_f = -sum_j Vbar (u*_f - u*_j).grad W (P-Eq. 25; walls have u* = 0,
 /// solids their `u_solid`),
 /// and the diagonal
@@ -208,6 +228,18 @@ pub const MIN_ALPHA_F: f32 = 0.01;
 ///               + sum_{s solid} (V_f/m_s) |g_fs|^2 ]
 /// (PHYSICS.md §2.2; the solid term is d(a^p_s)/dp_f of
 /// [`solid_pressure_force`]).
+///
+/// The source is [AC]'s form, not P-Eq. 29's alpha_f (1 + dt div*) - V0/V
+/// (which PHYSICS.md §8.4 recommends): the two agree for alpha_f = 1 (every
+/// particle without porous solids), but P-Eq. 29 asks a partly absorbed
+/// particle for a smoothed outer volume V0/V = sum_j V0_j W_fj of only
+/// alpha_f, which no particle next to a solid (whose V0 fill its
+/// neighbourhood) can have: it pushes every partly absorbed particle away
+/// from the porous surface, so absorbed fluid never enters the solid and
+/// the surface layer saturates while the inside stays dry (measured:
+/// `tests/porous.rs`, the soak test). With [AC]'s form such a particle
+/// asks for a full neighbourhood like any other, and only the solid rows
+/// resist the outer part of it.
 pub fn fluid_setup(
     ff: &mut PairLists,
     fb: &mut PairLists,
@@ -233,7 +265,7 @@ pub fn fluid_setup(
                 if let Some(bs) = bs.as_deref_mut() {
                     scale_pairs(bs, q, rows.vol[i], rows.vol_solid);
                 }
-                if rows.alpha_f[i] < MIN_ALPHA_F || rows.vol[i] <= 0.0 {
+                if rows.alpha_f[i] < MIN_ROW_ALPHA_F || rows.vol[i] <= 0.0 {
                     *src = 0.0;
                     *dg = 0.0;
                     continue;
@@ -286,7 +318,7 @@ pub fn fluid_setup(
                     }
                 }
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
-                *src = rows.alpha_f[i] * (1.0 + dt * sum(div)) - rows.sigma[i];
+                *src = rows.alpha_f[i] * (1.0 + dt * sum(div) - rows.sigma[i]);
                 *dg = -dt2 * (rows.vm[i] * (sx * sx + sy * sy + sz * sz) + sum(s2) + rows.vol[i] * sum(s2_solid));
             }
         });

@@ -15,4 +15,5 @@ pub mod lanes;
 pub mod neighbors;
 pub mod phase_transport;
 pub mod phases;
+pub mod porous;
 pub mod viscosity;

@@ -3,6 +3,7 @@
 //! the neighbour structures and the per-step arena.
 
 mod backend;
+mod porous;
 mod restore;
 mod setup;
 pub mod solid;
@@ -64,6 +65,41 @@ pub struct Params {
     pub elastic_tolerance: f32,
     /// Largest number of elastic conjugate-gradient iterations.
     pub elastic_max_iterations: u32,
+    /// Elastic body of each solid entry: entries with the same `body` name
+    /// share an index (rest neighbours and rigid motion in the solve).
+    pub solid_group: Vec<u32>,
+    /// Rest mass m_s0 = rho_s d^3 of a particle of each solid entry, kg.
+    pub solid_rest_mass: Vec<f32>,
+    /// Porous parameters of each solid entry (`None`: not porous).
+    pub porous: Vec<Option<PorousRegion>>,
+    /// Pore drift weight phi of P-Eq. 11, m^2/(Pa s).
+    pub pore_drift: f32,
+    /// Inner drift weight tau' of P-Eq. 12.
+    pub inner_drift_tau: f32,
+    /// Inner diffusion weight sigma' of P-Eq. 12, m^2/s.
+    pub inner_drift_sigma: f32,
+}
+
+/// Porous parameters of one solid region (P §4, PHYSICS.md §4.2), SI units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PorousRegion {
+    /// Porosity e.
+    pub porosity: f32,
+    /// p_0 of P-Eq. 9, Pa.
+    pub rest_pore_pressure: f32,
+    /// B of P-Eq. 9, Pa.
+    pub biot_modulus: f32,
+    /// eta of P-Eq. 5.
+    pub swelling: f32,
+    /// psi of P-Eq. 14, m^2/s^2.
+    pub capillarity: f32,
+    /// K of P-Eq. 13.
+    pub absorption: f32,
+    pub gains_mass: bool,
+    /// k_wk per phase, m^2 (0: not absorbed).
+    pub permeability: Vec<f32>,
+    /// p_0k per phase, Pa (0 for a phase that is not absorbed).
+    pub outer_pore_pressure: Vec<f32>,
 }
 
 /// What one step did.
@@ -79,6 +115,8 @@ pub struct StepStats {
     pub max_speed: f32,
     /// Largest drift speed max_k |u_mk| of the step, m/s (0 for one phase).
     pub max_drift_speed: f32,
+    /// Largest Darcy speed max_k |u_rk| on the porous solids, m/s.
+    pub max_darcy_speed: f32,
     /// Conjugate-gradient iterations of the elastic solve (0 without solids).
     pub cg_iterations: u32,
     /// Relative residual |r|/|b| after the elastic solve.
@@ -98,6 +136,11 @@ struct Workspace {
     wall_grid: CellGrid,
     /// Fluid-fluid pairs (incl. self).
     ff: PairLists,
+    /// With porous solids and several phases: the fluid-fluid pairs with
+    /// h^3 grad W_ij, the full-particle volumes of the inner (beta)
+    /// gradients and transport, which the pressure solve's pair volumes
+    /// (0 for an inner particle) would cut off.
+    ffb: PairLists,
     /// Fluid-wall pairs.
     fb: PairLists,
     /// Active-wall-fluid pairs.
@@ -173,6 +216,7 @@ impl Simulation {
             + w.ss.bytes()
             + w.sb.bytes()
             + w.ff.bytes()
+            + w.ffb.bytes()
             + w.fb.bytes()
             + w.bf.bytes()
             + 8 * w.keys.capacity()
@@ -184,12 +228,25 @@ impl Simulation {
         bytes as f64 / self.fluid.len().max(1) as f64
     }
 
-    /// Volume of each phase in the fluid, sum_i h^3 alpha_k,i over the fluid
-    /// particles (the particle volume h^3 = V0 / alpha_f, P §6.1), m^3;
-    /// summed in f64 in particle order.
+    /// Volume of each phase in the fluid, sum_i h^3 (alpha_k,i + beta_k,i)
+    /// over the fluid particles (the particle volume h^3 = V0 / alpha_f,
+    /// P §6.1), m^3; summed in f64 in particle order.
     pub fn phase_volumes(&self) -> Vec<f64> {
+        let (outer, inner) = self.phase_volumes_split();
+        outer.iter().zip(&inner).map(|(a, b)| a + b).collect()
+    }
+
+    /// Outer and inner volume of each phase, sum_i h^3 alpha_k,i and
+    /// sum_i h^3 beta_k,i, m^3 (f64 sums in particle order).
+    pub fn phase_volumes_split(&self) -> (Vec<f64>, Vec<f64>) {
         let cell = f64::from(self.params.cell_volume());
-        self.fluid.alpha.iter().map(|a| cell * a.iter().map(|&x| f64::from(x)).sum::<f64>()).collect()
+        let sum = |a: &Vec<f32>| cell * a.iter().map(|&x| f64::from(x)).sum::<f64>();
+        (self.fluid.alpha.iter().map(sum).collect(), self.fluid.beta.iter().map(sum).collect())
+    }
+
+    /// Mass of each phase in the fluid, rho_k times its volume, kg.
+    pub fn phase_masses(&self) -> Vec<f64> {
+        self.phase_volumes().iter().zip(&self.params.phase_density).map(|(v, &r)| v * f64::from(r)).collect()
     }
 
     /// Number of fluid-fluid and fluid-wall pairs of the last step.

@@ -2,7 +2,7 @@
 //! structures, and the initial time step.
 
 use super::solid::{Peer2018, SolidModel};
-use super::{Params, Simulation, StepStats, Workspace};
+use super::{Params, PorousRegion, Simulation, StepStats, Workspace};
 use crate::scene::{sample_fluid, sample_solids, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -40,13 +40,74 @@ impl Params {
             solid_lame: scene.solids.iter().map(|b| Lame { mu: b.shear_modulus, lambda: b.lame_lambda }).collect(),
             elastic_tolerance: s.elastic_tolerance,
             elastic_max_iterations: s.elastic_max_iterations,
+            solid_group: {
+                let mut names: Vec<&str> = Vec::new();
+                scene
+                    .solids
+                    .iter()
+                    .map(|b| match names.iter().position(|n| *n == b.body) {
+                        Some(g) => g as u32,
+                        None => {
+                            names.push(&b.body);
+                            (names.len() - 1) as u32
+                        }
+                    })
+                    .collect()
+            },
+            solid_rest_mass: scene.solids.iter().map(|b| b.density * h * h * h).collect(),
+            porous: scene
+                .solids
+                .iter()
+                .map(|b| {
+                    b.porous.as_ref().map(|p| PorousRegion {
+                        porosity: p.porosity,
+                        rest_pore_pressure: p.rest_pore_pressure,
+                        biot_modulus: p.biot_modulus,
+                        swelling: p.swelling,
+                        capillarity: p.capillarity,
+                        absorption: p.absorption,
+                        gains_mass: p.gains_mass,
+                        permeability: p.phases.iter().map(|k| k.map_or(0.0, |k| k.permeability)).collect(),
+                        outer_pore_pressure: p
+                            .phases
+                            .iter()
+                            .map(|k| k.map_or(0.0, |k| k.outer_pore_pressure))
+                            .collect(),
+                    })
+                })
+                .collect(),
+            pore_drift: s.pore_drift,
+            inner_drift_tau: s.inner_drift_tau,
+            inner_drift_sigma: s.inner_drift_sigma,
         }
+    }
+
+    /// Whether any solid is porous (the porous passes run).
+    pub fn porous(&self) -> bool {
+        self.porous.iter().any(Option::is_some)
+    }
+
+    /// Number of elastic bodies (distinct `body` names).
+    pub fn bodies(&self) -> usize {
+        self.solid_group.iter().map(|&g| g as usize + 1).max().unwrap_or(0)
+    }
+
+    /// The rest mass m_s0 of each solid particle, kg.
+    pub fn particle_rest_mass(&self, solids: &SolidStore) -> Vec<f32> {
+        solids.body.iter().map(|&b| self.solid_rest_mass[b as usize]).collect()
+    }
+
+    /// The elastic body of each solid particle.
+    pub fn particle_groups(&self, solids: &SolidStore) -> Vec<u32> {
+        solids.body.iter().map(|&b| self.solid_group[b as usize]).collect()
     }
 
     /// The solid model of `solids` (PHYSICS.md §3: Peer et al. 2018).
     pub fn solid_model(&self, solids: &SolidStore) -> Box<dyn SolidModel> {
         Box::new(Peer2018::new(
             solids,
+            &self.particle_groups(solids),
+            &self.particle_rest_mass(solids),
             &self.solid_lame,
             &self.kernel,
             self.elastic_tolerance,
@@ -121,6 +182,7 @@ impl Simulation {
         fluid.pressure = vec![0.0; nf];
         fluid.density = vec![0.0; nf];
         fluid.alpha = (0..k).map(|ph| sampled_fluid.fractions.iter().map(|f| f[ph]).collect()).collect();
+        fluid.beta = vec![vec![0.0; nf]; k];
         fluid.id = (0..nf as u32).collect();
 
         let mut walls = WallStore::default();
@@ -162,6 +224,8 @@ impl Simulation {
                 (&mut solids.pressure, 0.0),
                 (&mut solids.stress, 0.0),
                 (&mut solids.strain_trace, 0.0),
+                (&mut solids.saturation, 0.0),
+                (&mut solids.pore_pressure, 0.0),
             ] {
                 col.push(val);
             }
@@ -169,8 +233,12 @@ impl Simulation {
         solids.body = sampled_solids.body;
         solids.fixed = sampled_solids.fixed;
         solids.id = ((nf + nw) as u32..(nf + nw + ns) as u32).collect();
-        solids.ppe_volume =
-            super::solid::pressure_volumes(&solids, &params.kernel, flat_wall_gamma(&params.kernel, params.h));
+        solids.ppe_volume = super::solid::pressure_volumes(
+            &solids,
+            &params.particle_groups(&solids),
+            &params.kernel,
+            flat_wall_gamma(&params.kernel, params.h),
+        );
         let solid_model = params.solid_model(&solids);
 
         let work = wall_workspace(&mut walls, &params);

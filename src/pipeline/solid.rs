@@ -23,9 +23,10 @@ use rayon::prelude::*;
 /// corners. (V0_s = d^3 everywhere made the rows of block edges
 /// ill-conditioned, as it did for walls: a floating block blew up in 9
 /// steps.)
-pub fn pressure_volumes(solids: &SolidStore, kernel: &CubicSpline, gamma: f32) -> Vec<f32> {
+/// `group` is the elastic body of each particle.
+pub fn pressure_volumes(solids: &SolidStore, group: &[u32], kernel: &CubicSpline, gamma: f32) -> Vec<f32> {
     let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
-    let rest = RestState::new(&x0, &solids.body, &solids.mass, kernel);
+    let rest = RestState::new(&x0, group, &solids.mass, kernel);
     (0..solids.len())
         .map(|i| {
             let s = kernel.w0() + rest.range(i).map(|p| kernel.w(rest.dx0[p].length())).sum::<f32>();
@@ -79,17 +80,21 @@ pub struct Peer2018 {
 }
 
 impl Peer2018 {
-    /// The model for the particles of `solids` (rest positions, bodies and
-    /// masses), with the Lamé parameters of each body.
+    /// The model for the particles of `solids` (rest positions, and the
+    /// Lamé parameters of each entry `body_lame`), `group` the elastic body
+    /// of each particle (rest neighbours only within a body) and `rest_mass`
+    /// its mass before it absorbed anything (the rest volumes).
     pub fn new(
         solids: &SolidStore,
+        group: &[u32],
+        rest_mass: &[f32],
         body_lame: &[Lame],
         kernel: &CubicSpline,
         tolerance: f32,
         max_iterations: u32,
     ) -> Self {
         let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
-        let rest = RestState::new(&x0, &solids.body, &solids.mass, kernel);
+        let rest = RestState::new(&x0, group, rest_mass, kernel);
         let lame = solids.body.iter().map(|&b| body_lame[b as usize]).collect();
         Peer2018 {
             rest,

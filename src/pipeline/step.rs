@@ -18,7 +18,7 @@ use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, SolidPairs, Vel, VelMut, WallRows, MIN_ALPHA_F};
 use porosph_kernels::integrate::{integrate, State};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phase_transport;
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
 use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
@@ -74,7 +74,7 @@ impl Simulation {
         if !speed.is_finite() || speed > self.blowup_speed() {
             return Err(self.blowup(speed));
         }
-        self.dt = self.next_dt(speed, stats.max_drift_speed);
+        self.dt = self.next_dt(speed, stats.max_drift_speed.max(stats.max_darcy_speed));
         stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
         stats.max_speed = speed;
         stats.dt = dt;
@@ -252,6 +252,14 @@ fn step_passes(
     let fs_pairs = (ns > 0).then_some(&w.fs);
     tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
 
+    // Porous coupling, part 1: N_f and the fallback of P Alg. 4.
+    let porous = p.porous() && ns > 0 && n > 0;
+    let (n_f, porous_mask) = if porous {
+        tm.time(pass::POROUS, || super::porous::partition(p, fluid, solids, w, arena))
+    } else {
+        (&[][..], &[][..])
+    };
+
     // Pass 1: phase bookkeeping: rest density rho_fm = sum_k alpha_k rho_k,
     // mu_m = sum_k alpha_k mu_k, alpha_f = sum_k alpha_k; m = rho_fm h^3 and
     // V0 = alpha_f h^3 (P §6.1).
@@ -276,6 +284,13 @@ fn step_passes(
                         r += al[i] * p.phase_density[k];
                         v += al[i] * p.phase_viscosity[k];
                         a += al[i];
+                    }
+                    // Inner fractions count in the mass and viscosity (P-Eq. 10).
+                    if porous {
+                        for (k, be) in fluid.beta.iter().enumerate() {
+                            r += be[i] * p.phase_density[k];
+                            v += be[i] * p.phase_viscosity[k];
+                        }
                     }
                     rho[q] = r;
                     mu[q] = v;
@@ -354,8 +369,29 @@ fn step_passes(
             predict_velocity(&inp, usx, usy, usz);
         }
     });
-    let u_star = Vel { x: usx, y: usy, z: usz };
     let a_visc = Vel { x: avx, y: avy, z: avz };
+
+    // Porous coupling, part 2 (passes 6-7, 9): before the pressure solve
+    // scales the fluid-solid pair gradients by pair volumes. With several
+    // phases, also the fluid pairs of the inner transport (h^3 grad W).
+    let terms = porous.then(|| {
+        tm.time(pass::POROUS, || {
+            if mixture {
+                w.ffb.clone_from(&w.ff);
+                let cell = p.cell_volume();
+                w.ffb.used_mut().par_iter_mut().for_each(|blk| {
+                    for g in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
+                        g.iter_mut().for_each(|x| *x *= cell);
+                    }
+                });
+            }
+            super::porous::pore_state(p, fluid, solids, w, arena, n_f, porous_mask)
+        })
+    });
+    if let Some(t) = &terms {
+        st.max_darcy_speed = t.max_darcy_speed;
+    }
+    let u_star = Vel { x: usx, y: usy, z: usz };
 
     // Pass 4c: pair volumes, sources (P-Eqs. 26, 29) and diagonals.
     let src = zeros(arena, n);
@@ -380,13 +416,13 @@ fn step_passes(
     // per-particle masses, whose surface layer alone would face the fluid).
     // A body with fixed particles does not move within the solve. The
     // elastic solve then takes the per-particle forces F_s.
-    let nbodies = p.solid_lame.len();
+    let nbodies = p.bodies();
     let body_inv_mass = arena.alloc_slice_fill_copy(nbodies, 0.0f32);
     {
         let mass = arena.alloc_slice_fill_copy(nbodies, 0.0f64);
         let anchored = arena.alloc_slice_fill_copy(nbodies, false);
         for i in 0..ns {
-            let b = solids.body[i] as usize;
+            let b = p.solid_group[solids.body[i] as usize] as usize;
             mass[b] += f64::from(solids.mass[i]);
             anchored[b] |= solids.fixed[i] != 0;
         }
@@ -394,7 +430,8 @@ fn step_passes(
             body_inv_mass[b] = if anchored[b] || mass[b] <= 0.0 { 0.0 } else { (1.0 / mass[b]) as f32 };
         }
     }
-    let body_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.body[i as usize]));
+    let body_s =
+        arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
     let inv_mass_s = arena.alloc_slice_fill_iter(body_s.iter().map(|&b| body_inv_mass[b as usize]));
     let body_force = arena.alloc_slice_fill_copy(3 * nbodies, 0.0f64);
     let (asx, asy, asz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
@@ -548,18 +585,38 @@ fn step_passes(
                 solids.pressure[i] = p_s[k];
                 a_ext[i] = g + Vec3::new(fx[k], fy[k], fz[k]) / solids.mass[i];
             }
-            let cg = solid_model.advance(solids, a_ext, None, dt);
+            let pore = terms.as_ref().and_then(|t| t.pore_stress);
+            let cg = solid_model.advance(solids, a_ext, pore, dt);
             st.cg_iterations = cg.iterations;
             st.cg_residual = cg.residual;
             wall_contact(p, solids, walls, w);
         });
     }
 
+    // Porous coupling, part 3: a^cap and a^pore (P-Eqs. 10, 14), added to
+    // a^p, so the drift's a = -(a^visc + a^p + a^pore + a^cap).
+    if let Some(t) = &terms {
+        tm.time(pass::POROUS, || {
+            super::porous::accelerations(p, fluid, t, rest_density, u_star, dt, [&mut *apx, &mut *apy, &mut *apz]);
+        });
+    }
+
     // Passes 10-12: drift velocities, drift momentum, volume-fraction
     // transport (several phases only; the pair lists now hold
-    // Vbar_ij grad W_ij). apx.. then hold a^p + a^Dm.
-    let alpha_next = zeros(arena, np * nm);
+    // Vbar_ij grad W_ij). apx.. then hold a^p (+ a^pore + a^cap) + a^Dm.
+    let nt = if mixture || porous { n } else { 0 };
+    let alpha_next = zeros(arena, np * nt);
+    let beta_next = zeros(arena, if porous { np * n } else { 0 });
     if mixture {
+        let inner = terms.as_ref().map(|t| PorousDrift {
+            grad_pore: t.grad_pore,
+            q: t.q,
+            ffb: &w.ffb,
+            pore_drift: p.pore_drift,
+            inner_tau: p.inner_drift_tau,
+            inner_sigma: p.inner_drift_sigma,
+            beta_next: &mut *beta_next,
+        });
         let ms = mixture_passes(
             p,
             fluid,
@@ -572,7 +629,8 @@ fn step_passes(
             rest_density,
             alpha_next,
             Buffers { pair_limit: &mut w.pair_limit, pair_flux: &mut w.pair_flux },
-            w.gpu.as_deref_mut().filter(|g| g.passes.drift).map(|backend| GpuDrift {
+            inner,
+            w.gpu.as_deref_mut().filter(|g| g.passes.drift && !porous).map(|backend| GpuDrift {
                 backend,
                 grid: &w.fluid_grid,
                 vol,
@@ -582,6 +640,19 @@ fn step_passes(
             tm,
         );
         st.max_drift_speed = ms;
+    } else if porous {
+        // One phase: nothing drifts; the fractions change only by absorption.
+        alpha_next.copy_from_slice(&fluid.alpha[0]);
+        beta_next.copy_from_slice(&fluid.beta[0]);
+    }
+    // The absorption exchange of pass 12 (P-Eqs. 6-7, 22), within each
+    // particle, after the transport.
+    if let Some(t) = &terms {
+        tm.time(pass::PHASE_TRANSPORT, || {
+            for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
+                porosph_kernels::porous::exchange(&t.gamma[k * n..(k + 1) * n], dt, a, b);
+            }
+        });
     }
 
     // Pass 13: symplectic Euler.
@@ -605,8 +676,22 @@ fn step_passes(
         }
     });
 
-    // Pass 14: correction of the volume fractions (several phases only).
-    if mixture {
+    // Pass 14: correction of the volume fractions (several phases only),
+    // with porous solids of alpha and beta together (P Alg. 4): negative
+    // fractions to 0, then alpha and beta scaled by one common factor so
+    // that sum_k (alpha_k + beta_k) = 1, keeping the alpha/beta split.
+    if porous {
+        tm.time(pass::PHASE_CORRECTION, || {
+            let chunks: Vec<&[f32]> = alpha_next.chunks(n).chain(beta_next.chunks(n)).collect();
+            let next = arena.alloc_slice_copy(&chunks);
+            let total = zeros(arena, n);
+            let largest = arena.alloc_slice_fill_copy(n, 0u32);
+            phase_transport::correction_sums(next, total, largest);
+            for (k, a) in fluid.alpha.iter_mut().chain(fluid.beta.iter_mut()).enumerate() {
+                phase_transport::correct(next[k], total, largest, k, a);
+            }
+        });
+    } else if mixture {
         tm.time(pass::PHASE_CORRECTION, || {
             let next = arena.alloc_slice_fill_iter(alpha_next.chunks(n));
             let total = zeros(arena, n);
@@ -649,6 +734,7 @@ fn mixture_passes(
     rest_density: &[f32],
     alpha_next: &mut [f32],
     buffers: Buffers,
+    porous: Option<PorousDrift>,
     gpu: Option<GpuDrift>,
     tm: &mut super::PassTimes,
 ) -> f32 {
@@ -711,27 +797,60 @@ fn mixture_passes(
                 tau: p.phase_drift_tau[k],
                 sigma: p.phase_drift_sigma[k],
             };
-            drift::phase_velocity(&inp, alpha[k], phase, VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+            let (mut v, mut w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+            drift::phase_velocity(&inp, alpha[k], phase, v.reborrow(), w.reborrow());
+            // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
+            if let Some(pd) = &porous {
+                let r = k * n..(k + 1) * n;
+                let [gx, gy, gz] = pd.grad_pore;
+                let e = Vel { x: &gx[r.clone()], y: &gy[r.clone()], z: &gz[r] };
+                porosph_kernels::porous::add_phase_term(alpha[k], alpha_f, e, -pd.pore_drift, v, w);
+            }
         }
-        let (sx, sy, sz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
-        let (mx, my, mz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
-        {
-            let w = phase_vel(arena, fx, fy, fz, n);
-            let s = VelMut { x: &mut *sx, y: &mut *sy, z: &mut *sz };
-            let m = VelMut { x: &mut *mx, y: &mut *my, z: &mut *mz };
-            drift::mixture_velocity(alpha, alpha_f, &p.phase_density, w, s, m);
-        }
-        let (s, m) = (Vel { x: sx, y: sy, z: sz }, Vel { x: mx, y: my, z: mz });
-        let m = if p.conservative_transport { Some(m) } else { None };
-        let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
-        let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
-        for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
-            drift::drift_velocity(alpha[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
-        }
+        let ctx = MixtureSums { arena, n, density: &p.phase_density, conservative: p.conservative_transport };
+        ctx.drift_velocities(alpha, alpha_f, [&mut *ux, &mut *uy, &mut *uz], [&mut *fx, &mut *fy, &mut *fz]);
         drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n)
     });
     tm.gpu_ms[pass::DRIFT] = gpu_ms;
     let u_drift = phase_vel(arena, ux, uy, uz, n);
+
+    // P-Eq. 12: the inner drift velocities and fluxes, over the pairs with
+    // h^3 grad W (inner particles have no pressure-solve volume).
+    let mut max_drift = max_drift;
+    let mut beta_next = None;
+    if let Some(pd) = porous {
+        let PorousDrift { q, ffb, inner_tau, inner_sigma, beta_next: out, .. } = pd;
+        let beta: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
+        let beta_f = arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>()));
+        let speed = tm.time(pass::DRIFT, || {
+            let [bx, by, bz] = [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
+            let [gx, gy, gz] = [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
+            let inp = PhaseVelocityInput {
+                ff: ffb,
+                alpha_f: beta_f,
+                p_per_fraction: None,
+                a_visc,
+                a_p: Vel { x: apx, y: apy, z: apz },
+            };
+            for (k, &beta_k) in beta.iter().enumerate() {
+                let r = k * n..(k + 1) * n;
+                let phase =
+                    PhaseConstants { density: p.phase_density[k], tau: p.phase_drift_tau[k], sigma: inner_sigma };
+                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                drift::phase_velocity(&inp, beta_k, phase, v, w);
+                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                let e = Vel { x: &q[0][r.clone()], y: &q[1][r.clone()], z: &q[2][r] };
+                porosph_kernels::porous::add_phase_term(beta_k, beta_f, e, -inner_tau, v, w);
+            }
+            let ctx = MixtureSums { arena, n, density: &p.phase_density, conservative: p.conservative_transport };
+            ctx.drift_velocities(beta, beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
+            (drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n), [&*gx, &*gy, &*gz])
+        });
+        max_drift = max_drift.max(speed.0);
+        beta_next = Some((ffb, beta, speed.1, out));
+    }
 
     // Pass 11: a^Dm (PHYSICS.md §4.1, sign per §8.15), added to a^p.
     if p.drift_momentum_sign != 0.0 {
@@ -752,13 +871,73 @@ fn mixture_passes(
         });
     }
 
-    // Pass 12: transport of every phase at the old positions (P-Eq. 2).
+    // Pass 12: transport of every phase at the old positions (P-Eq. 2),
+    // outer fractions over the pressure solve's pairs, inner ones (P-Eq. 7)
+    // over the h^3 pairs.
     tm.time(pass::PHASE_TRANSPORT, || {
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
-        let flux = phase_vel(arena, fx, fy, fz, n);
-        if p.conservative_transport {
+        let Buffers { pair_limit, pair_flux } = buffers;
+        let mut tr = Transport { p, arena, n, dt, u, pair_limit, pair_flux };
+        tr.run(ff, alpha, phase_vel(arena, fx, fy, fz, n), alpha_next);
+        if let Some((ffb, beta, [gx, gy, gz], out)) = beta_next {
+            tr.run(ffb, beta, phase_vel(arena, gx, gy, gz, n), out);
+        }
+    });
+    max_drift
+}
+
+/// Steps 2-3 of P-Eq. 11 (or 12) for all phases: the mass- and
+/// volume-weighted mean phase velocities, then the drift velocities over
+/// the phase velocities v and the transport fluxes over w.
+struct MixtureSums<'a> {
+    arena: &'a Bump,
+    n: usize,
+    density: &'a [f32],
+    conservative: bool,
+}
+
+impl<'a> MixtureSums<'a> {
+    fn drift_velocities(&self, frac: &[&[f32]], frac_f: &[f32], v: [&mut [f32]; 3], w: [&mut [f32]; 3]) {
+        let (arena, n) = (self.arena, self.n);
+        let [ux, uy, uz] = v;
+        let [fx, fy, fz] = w;
+        let (sx, sy, sz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        let (mx, my, mz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        {
+            let w = phase_vel(arena, fx, fy, fz, n);
+            let s = VelMut { x: &mut *sx, y: &mut *sy, z: &mut *sz };
+            let m = VelMut { x: &mut *mx, y: &mut *my, z: &mut *mz };
+            drift::mixture_velocity(frac, frac_f, self.density, w, s, m);
+        }
+        let (s, m) = (Vel { x: sx, y: sy, z: sz }, Vel { x: mx, y: my, z: mz });
+        let m = if self.conservative { Some(m) } else { None };
+        let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+        let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+        for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
+            drift::drift_velocity(frac[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
+        }
+    }
+}
+
+/// The volume-fraction transport of pass 12 for one set of fractions.
+struct Transport<'a, 'b> {
+    p: &'a Params,
+    arena: &'a Bump,
+    n: usize,
+    dt: f32,
+    u: Vel<'a>,
+    pair_limit: &'b mut Vec<Vec<f32>>,
+    pair_flux: &'b mut Vec<Vec<Vec<f32>>>,
+}
+
+impl Transport<'_, '_> {
+    /// Moves the fractions `frac` (per phase) by the fluxes `flux` over the
+    /// pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
+    fn run(&mut self, ff: &PairLists, frac: &[&[f32]], flux: PhaseVel, next: &mut [f32]) {
+        let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
+        if self.p.conservative_transport {
             let nb = ff.used().len();
-            let Buffers { pair_limit, pair_flux } = buffers;
+            let (pair_limit, pair_flux) = (&mut *self.pair_limit, &mut *self.pair_flux);
             pair_flux.resize_with(np, Vec::new);
             for f in pair_flux.iter_mut() {
                 f.resize_with(nb.max(f.len()), Vec::new);
@@ -768,27 +947,44 @@ fn mixture_passes(
             }
             let limit = zeros(arena, np * n);
             for (k, (l, phi)) in limit.chunks_mut(n).zip(pair_flux.iter_mut()).enumerate() {
-                phase_transport::outflow_limit(ff, alpha[k], flux.phase(k), dt, l, &mut phi[..nb]);
+                phase_transport::outflow_limit(ff, frac[k], flux.phase(k), dt, l, &mut phi[..nb]);
             }
             let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
             let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
             phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
-            for (k, out) in alpha_next.chunks_mut(n).enumerate() {
-                phase_transport::transport(ff, alpha[k], phi[k], &pair_limit[..nb], dt, out);
+            for (k, out) in next.chunks_mut(n).enumerate() {
+                phase_transport::transport(ff, frac[k], phi[k], &pair_limit[..nb], dt, out);
             }
         } else {
-            for (k, out) in alpha_next.chunks_mut(n).enumerate() {
-                phase_transport::transport_reference(ff, u, alpha[k], flux.phase(k), dt, out);
+            for (k, out) in next.chunks_mut(n).enumerate() {
+                phase_transport::transport_reference(ff, self.u, frac[k], flux.phase(k), dt, out);
             }
         }
-    });
-    max_drift
+    }
 }
 
 /// Pair buffers of the conservative transport, kept across steps.
 struct Buffers<'a> {
     pair_limit: &'a mut Vec<Vec<f32>>,
     pair_flux: &'a mut Vec<Vec<Vec<f32>>>,
+}
+
+/// The porous inputs of the drift and transport passes (P-Eqs. 11-12).
+struct PorousDrift<'a> {
+    /// grad p^pore_fk per phase (flat), Pa/m.
+    grad_pore: [&'a [f32]; 3],
+    /// q_k,f per phase (flat), m/s.
+    q: [&'a [f32]; 3],
+    /// Fluid pairs with h^3 grad W.
+    ffb: &'a PairLists,
+    /// phi of P-Eq. 11, m^2/(Pa s).
+    pore_drift: f32,
+    /// tau' of P-Eq. 12.
+    inner_tau: f32,
+    /// sigma' of P-Eq. 12, m^2/s.
+    inner_sigma: f32,
+    /// Where the transported beta goes (flat per phase).
+    beta_next: &'a mut [f32],
 }
 
 /// Per-phase views of three flat arrays holding phase k at `[k n, (k + 1) n)`.

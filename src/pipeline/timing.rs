@@ -8,11 +8,13 @@ use std::time::Instant;
 /// 2 densities and volumes (4a-b), 3 viscosity and u*, 4c sources and
 /// diagonal, 5 the IISPH Jacobi loop, 6 and 8 the elastic solids
 /// (deformation, stress, conjugate gradients; 0 ms without solids),
-/// 10 drift velocities, 11 the drift
+/// 6-7 and 9 the porous coupling (absorbed volume, pore pressure, Darcy
+/// flux, the fluid's porous terms and accelerations; 0 ms without porous
+/// solids), 10 drift velocities, 11 the drift
 /// momentum term, 12 volume-fraction transport, 13 integration, 14 the
 /// volume-fraction correction and 14 the next time step (CFL). Passes 10,
 /// 11, 12 and the correction run only with two or more phases (0 ms else).
-pub const PASSES: [&str; 13] = [
+pub const PASSES: [&str; 14] = [
     "neighbors",
     "phases",
     "densities",
@@ -20,6 +22,7 @@ pub const PASSES: [&str; 13] = [
     "ppe_setup",
     "pressure_solve",
     "elasticity",
+    "porous",
     "drift",
     "drift_momentum",
     "phase_transport",
@@ -37,12 +40,13 @@ pub mod pass {
     pub const PPE_SETUP: usize = 4;
     pub const PRESSURE_SOLVE: usize = 5;
     pub const ELASTICITY: usize = 6;
-    pub const DRIFT: usize = 7;
-    pub const DRIFT_MOMENTUM: usize = 8;
-    pub const PHASE_TRANSPORT: usize = 9;
-    pub const INTEGRATE: usize = 10;
-    pub const PHASE_CORRECTION: usize = 11;
-    pub const TIME_STEP: usize = 12;
+    pub const POROUS: usize = 7;
+    pub const DRIFT: usize = 8;
+    pub const DRIFT_MOMENTUM: usize = 9;
+    pub const PHASE_TRANSPORT: usize = 10;
+    pub const INTEGRATE: usize = 11;
+    pub const PHASE_CORRECTION: usize = 12;
+    pub const TIME_STEP: usize = 13;
 }
 
 /// Wall-clock milliseconds per pass of one step.

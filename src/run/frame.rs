@@ -10,9 +10,14 @@ pub mod kind {
     pub const WALL: u8 = 2;
 }
 
-/// Display colour of solid particles (linear RGB), until saturation colours
-/// them (the porous issue).
+/// Display colour of dry solid particles (linear RGB).
 const SOLID_COLOR: [f32; 3] = [0.80, 0.62, 0.38];
+/// Display colour of a saturated porous solid (linear RGB); a solid's
+/// colour goes from [`SOLID_COLOR`] to this with its saturation.
+const WET_COLOR: [f32; 3] = [0.85, 0.33, 0.05];
+/// Inner (absorbed) fluid is drawn in its phase colour times this, so outer
+/// and inner phases can be told apart.
+const INNER_SHADE: f32 = 0.45;
 
 fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArray {
     PointArray { name: name.to_string(), unit: unit.to_string(), components, data }
@@ -21,7 +26,9 @@ fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArr
 impl Simulation {
     /// The current state as a frame: fluid particles first, then walls,
     /// then solids. Solid particles carry `stress` (von Mises, Pa) and
-    /// `strain_trace`; those are 0 on fluid and walls. Solids have the
+    /// `strain_trace`, `saturation` and `pore_pressure` (Pa); those are 0 on
+    /// fluid and walls. Fluid particles carry `alpha` and `beta` (outer and
+    /// inner fractions, K components each, 0 elsewhere). Solids have the
     /// density of their body.
     pub fn frame(&self) -> Frame {
         let (f, w, s) = (&self.fluid, &self.walls, &self.solids);
@@ -52,12 +59,17 @@ impl Simulation {
             alpha.extend(f.alpha.iter().map(|a| a[i]));
         }
         alpha.resize(k * total, 0.0);
+        let mut beta = Vec::with_capacity(k * total);
+        for i in 0..nf {
+            beta.extend(f.beta.iter().map(|b| b[i]));
+        }
+        beta.resize(k * total, 0.0);
         let mut color = Vec::with_capacity(3 * total);
         for i in 0..nf {
             let mut c = [0.0f32; 3];
-            for (ph, a) in self.scene.phases.iter().zip(&f.alpha) {
+            for ((ph, a), b) in self.scene.phases.iter().zip(&f.alpha).zip(&f.beta) {
                 for (cc, pc) in c.iter_mut().zip(ph.color) {
-                    *cc += a[i] * pc;
+                    *cc += (a[i] + INNER_SHADE * b[i]) * pc;
                 }
             }
             color.extend(c);
@@ -65,8 +77,11 @@ impl Simulation {
         for _ in 0..nw {
             color.extend([0.6, 0.6, 0.6]);
         }
-        for _ in 0..ns {
-            color.extend(SOLID_COLOR);
+        for i in 0..ns {
+            let e =
+                self.scene.solids.get(s.body[i] as usize).and_then(|b| b.porous.as_ref()).map_or(1.0, |p| p.porosity);
+            let t = (s.saturation[i] / e).clamp(0.0, 1.0);
+            color.extend((0..3).map(|c| SOLID_COLOR[c] + t * (WET_COLOR[c] - SOLID_COLOR[c])));
         }
         Frame {
             time: self.time,
@@ -78,7 +93,10 @@ impl Simulation {
                 array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density, &solid_density))),
                 array("stress", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.stress, &[]))),
                 array("strain_trace", "", 1, ArrayData::F32(cat(&zero_fw, &s.strain_trace, &[]))),
+                array("saturation", "", 1, ArrayData::F32(cat(&zero_fw, &s.saturation, &[]))),
+                array("pore_pressure", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.pore_pressure, &[]))),
                 array("alpha", "", k, ArrayData::F32(alpha)),
+                array("beta", "", k, ArrayData::F32(beta)),
                 array("color", "", 3, ArrayData::F32(color)),
                 array("kind", "", 1, ArrayData::U8(kinds)),
                 array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).chain(&s.id).copied().collect())),

@@ -132,8 +132,11 @@ impl From<IoError> for RunError {
     }
 }
 
-/// Header of `stats.csv` for a scene with `phases`: then `volume_<phase>`
-/// (m^3, [`Simulation::phase_volumes`]) per phase in scene order, and
+/// Header of `stats.csv` for a scene with `phases`: then per phase in
+/// scene order `volume_<phase>` (outer + inner, m^3,
+/// [`Simulation::phase_volumes`]), `volume_outer_<phase>`,
+/// `volume_inner_<phase>` (the part inside porous solids) and
+/// `mass_<phase>` (kg), then
 /// `ms_<pass>` per pass, `ms_step`, and `gpu_ms_<pass>` (device time, 0
 /// on the CPU) per pass the GPU backend can run.
 pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
@@ -153,6 +156,9 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
     .map(|s| s.to_string())
     .collect();
     c.extend(phases.iter().map(|p| format!("volume_{}", p.name)));
+    c.extend(phases.iter().map(|p| format!("volume_outer_{}", p.name)));
+    c.extend(phases.iter().map(|p| format!("volume_inner_{}", p.name)));
+    c.extend(phases.iter().map(|p| format!("mass_{}", p.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c.extend(GPU_PASS_NAMES.iter().map(|p| format!("gpu_ms_{p}")));
@@ -270,7 +276,11 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.cg_residual as f64,
             n,
         ];
+        let (outer, inner) = sim.phase_volumes_split();
         row.extend(sim.phase_volumes());
+        row.extend(outer);
+        row.extend(inner);
+        row.extend(sim.phase_masses());
         row.extend(st.times.ms);
         row.push(ms_step);
         row.extend(

@@ -78,6 +78,15 @@ pub struct Simulation {
     /// unpreconditioned CG needs about 4 (c dt / d) iterations, c the
     /// speed of sound of the solid, so stiff solids need many).
     pub elastic_max_iterations: u32,
+    /// Pore drift weight phi of P-Eq. 11's porous term, m^2/(Pa s) (the
+    /// units of tau, PHYSICS.md §7; default 3e-6, P Table 2).
+    pub pore_drift: f32,
+    /// Inner drift weight tau' of P-Eq. 12, dimensionless (it multiplies a
+    /// velocity, PHYSICS.md §8.11; default 1e-4, P Table 2).
+    pub inner_drift_tau: f32,
+    /// Inner diffusion weight sigma' of P-Eq. 12, m^2/s (default 2e-3,
+    /// P Table 2).
+    pub inner_drift_sigma: f32,
 }
 
 /// `phase_pressure`: the phase pressure p_k in P-Eq. 11
@@ -194,6 +203,42 @@ pub struct Solid {
     /// `motion = [{ from, until, velocity }, ..]`: the velocity of the fixed
     /// particles over time intervals [from, until) s.
     pub motion: Vec<Motion>,
+    /// `body = "NAME"`: entries with the same body name form one elastic
+    /// body (rest neighbours across them, one rigid motion in the pressure
+    /// solve) with regions of different material (default: its own name).
+    pub body: String,
+    /// `[solid.porous]`: the porous parameters of this solid (region).
+    pub porous: Option<Porous>,
+}
+
+/// `[solid.porous]`: a porous solid (P §4, PHYSICS.md §4.2, §7).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Porous {
+    /// Porosity e: the saturated absorbed volume ratio sum_k phi_sk.
+    pub porosity: f32,
+    /// Rest pore pressure p_0 of P-Eq. 9, Pa.
+    pub rest_pore_pressure: f32,
+    /// B of P-Eq. 9 ("Biot's ratio constant"), Pa.
+    pub biot_modulus: f32,
+    /// eta of P-Eq. 5: the pore stress -eta p^pore I (swelling).
+    pub swelling: f32,
+    /// psi of P-Eq. 14, m^2/s^2.
+    pub capillarity: f32,
+    /// Absorption ratio K of P-Eq. 13.
+    pub absorption: f32,
+    /// Wet particles gain the absorbed mass (the paper's Example 3).
+    pub gains_mass: bool,
+    /// Per phase (indexed like [`Scene::phases`]): `None` = not absorbed.
+    pub phases: Vec<Option<PorousPhase>>,
+}
+
+/// `[solid.porous.phase.NAME]`: how a porous solid absorbs one phase.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PorousPhase {
+    /// Permeability k_wk of P-Eq. 1, m^2 (PHYSICS.md §7: flux = -k/mu grad p).
+    pub permeability: f32,
+    /// Outer pore pressure p_0k, Pa: absorption stops where p^pore = p_0k.
+    pub outer_pore_pressure: f32,
 }
 
 /// One interval of prescribed motion of a solid's fixed particles.

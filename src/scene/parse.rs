@@ -7,8 +7,8 @@
 //! finiteness (TOML allows `nan` and `inf`) and range before it is used.
 
 use super::{
-    DriftMomentum, FluidBlock, Motion, Phase, PhasePressure, PhaseTransport, Scene, SceneError, Shape, Simulation,
-    Solid, Wall,
+    DriftMomentum, FluidBlock, Motion, Phase, PhasePressure, PhaseTransport, Porous, PorousPhase, Scene, SceneError,
+    Shape, Simulation, Solid, Wall,
 };
 use std::path::Path;
 use toml::{Table, Value};
@@ -57,6 +57,9 @@ const SIMULATION_KEYS: &[&str] = &[
     "phase_pressure",
     "elastic_tolerance",
     "elastic_max_iterations",
+    "pore_drift",
+    "inner_drift_tau",
+    "inner_drift_sigma",
 ];
 const PHASE_KEYS: &[&str] = &["name", "density", "viscosity", "color", "drift_tau", "drift_sigma"];
 
@@ -77,8 +80,23 @@ const PHASE_PRESSURE_VALUES: &[(&str, PhasePressure)] =
 const SHAPE_KEYS: &[&str] = &["box", "sphere", "cylinder"];
 const FLUID_KEYS: &[&str] = &["box", "sphere", "cylinder", "fractions", "velocity"];
 const WALL_KEYS: &[&str] = &["box", "sphere", "cylinder", "container", "open_top"];
-const SOLID_KEYS: &[&str] =
-    &["name", "box", "sphere", "cylinder", "density", "shear_modulus", "lame_lambda", "velocity", "fixed", "motion"];
+const SOLID_KEYS: &[&str] = &[
+    "name",
+    "box",
+    "sphere",
+    "cylinder",
+    "density",
+    "shear_modulus",
+    "lame_lambda",
+    "velocity",
+    "fixed",
+    "motion",
+    "body",
+    "porous",
+];
+const POROUS_KEYS: &[&str] =
+    &["porosity", "rest_pore_pressure", "biot_modulus", "swelling", "capillarity", "absorption", "gains_mass", "phase"];
+const POROUS_PHASE_KEYS: &[&str] = &["permeability", "outer_pore_pressure"];
 const FIXED_KEYS: &[&str] = &["box", "sphere", "cylinder"];
 const MOTION_KEYS: &[&str] = &["from", "until", "velocity"];
 const BOX_KEYS: &[&str] = &["min", "max"];
@@ -158,7 +176,7 @@ impl Scene {
         if let Some(v) = root.get("solid") {
             for (i, tbl) in cx.array_of_tables("solid", v)?.iter().enumerate() {
                 let path = format!("solid[{i}]");
-                let solid = cx.solid(&path, tbl, d)?;
+                let solid = cx.solid(&path, tbl, d, &phases)?;
                 if let Some(j) = solids.iter().position(|s| s.name == solid.name) {
                     return Err(cx.err(
                         &join(&path, "name"),
@@ -491,6 +509,30 @@ impl Cx<'_> {
             )?,
             None => 1000,
         };
+        let pore_drift = match t.get("pore_drift") {
+            Some(v) => {
+                self.f32_in(&key("pore_drift"), v, "the pore drift weight phi in m^2/(Pa s)", Range::NonNegative)?
+            }
+            None => 3e-6,
+        };
+        let inner_drift_tau = match t.get("inner_drift_tau") {
+            Some(v) => self.f32_in(
+                &key("inner_drift_tau"),
+                v,
+                "the inner drift weight tau' (dimensionless)",
+                Range::NonNegative,
+            )?,
+            None => 1e-4,
+        };
+        let inner_drift_sigma = match t.get("inner_drift_sigma") {
+            Some(v) => self.f32_in(
+                &key("inner_drift_sigma"),
+                v,
+                "the inner diffusion weight sigma' in m^2/s",
+                Range::NonNegative,
+            )?,
+            None => 2e-3,
+        };
 
         Ok(Simulation {
             particle_spacing,
@@ -510,6 +552,9 @@ impl Cx<'_> {
             phase_pressure,
             elastic_tolerance,
             elastic_max_iterations,
+            pore_drift,
+            inner_drift_tau,
+            inner_drift_sigma,
         })
     }
 
@@ -641,7 +686,7 @@ impl Cx<'_> {
     }
 
     /// `[[solid]]`.
-    fn solid(&self, path: &str, t: &Table, d: f64) -> Result<Solid, SceneError> {
+    fn solid(&self, path: &str, t: &Table, d: f64, phases: &[Phase]) -> Result<Solid, SceneError> {
         self.allow_keys(path, t, SOLID_KEYS)?;
         let key = |k: &str| join(path, k);
         let name = match self.required(path, t, "name", "the solid's name")? {
@@ -727,7 +772,106 @@ impl Cx<'_> {
                 );
             }
         }
-        Ok(Solid { name, shape, density, shear_modulus, lame_lambda, velocity, fixed, motion })
+        let body = match t.get("body") {
+            Some(Value::String(s)) if !s.trim().is_empty() => s.clone(),
+            Some(other) => {
+                return Err(self.err(
+                    &key("body"),
+                    format!(
+                        "expected the name of the body this solid belongs to (a non-empty string), found {}",
+                        describe(other)
+                    ),
+                ))
+            }
+            None => name.clone(),
+        };
+        let porous = match t.get("porous") {
+            Some(v) => Some(self.porous(&key("porous"), v, phases)?),
+            None => None,
+        };
+        Ok(Solid { name, shape, density, shear_modulus, lame_lambda, velocity, fixed, motion, body, porous })
+    }
+
+    /// `[solid.porous]` at `path`.
+    fn porous(&self, path: &str, v: &Value, phases: &[Phase]) -> Result<Porous, SceneError> {
+        let t = self.table(path, v)?;
+        self.allow_keys(path, t, POROUS_KEYS)?;
+        let key = |k: &str| join(path, k);
+        let what = "the porosity e (0 < e <= 1)";
+        let porosity =
+            self.f32_in(&key("porosity"), self.required(path, t, "porosity", what)?, what, Range::Positive)?;
+        if porosity > 1.0 {
+            return Err(self.err(&key("porosity"), format!("expected {what}, found {porosity}")));
+        }
+        let what = "the rest pore pressure p0 in Pa";
+        let rest_pore_pressure = self.f32_in(
+            &key("rest_pore_pressure"),
+            self.required(path, t, "rest_pore_pressure", what)?,
+            what,
+            Range::Positive,
+        )?;
+        let optional = |k: &str, what: &str, default: f32| -> Result<f32, SceneError> {
+            match t.get(k) {
+                Some(v) => self.f32_in(&key(k), v, what, Range::NonNegative),
+                None => Ok(default),
+            }
+        };
+        let biot_modulus = optional("biot_modulus", "the Biot modulus B in Pa", rest_pore_pressure)?;
+        let swelling = optional("swelling", "the pore stress factor eta", 0.0)?;
+        let capillarity = optional("capillarity", "the capillary strength psi in m^2/s^2", 0.0)?;
+        let absorption = optional("absorption", "the absorption ratio K", 1.0)?;
+        let gains_mass = match t.get("gains_mass") {
+            Some(v) => self.boolean(&key("gains_mass"), v)?,
+            None => false,
+        };
+        let mut out = vec![None; phases.len()];
+        if let Some(v) = t.get("phase") {
+            let pt = self.table(&key("phase"), v)?;
+            for (name, v) in pt {
+                let k = join(&key("phase"), name);
+                let Some(i) = phases.iter().position(|p| &p.name == name) else {
+                    let names: Vec<&str> = phases.iter().map(|p| p.name.as_str()).collect();
+                    return Err(self.err(&k, format!("unknown phase `{name}`; the phases are: {}", names.join(", "))));
+                };
+                let ptab = self.table(&k, v)?;
+                self.allow_keys(&k, ptab, POROUS_PHASE_KEYS)?;
+                let what = "the permeability k_w in m^2";
+                let permeability = self.f32_in(
+                    &join(&k, "permeability"),
+                    self.required(&k, ptab, "permeability", what)?,
+                    what,
+                    Range::NonNegative,
+                )?;
+                let what = "the outer pore pressure p0k in Pa";
+                let outer_pore_pressure = self.f32_in(
+                    &join(&k, "outer_pore_pressure"),
+                    self.required(&k, ptab, "outer_pore_pressure", what)?,
+                    what,
+                    Range::NonNegative,
+                )?;
+                if outer_pore_pressure > porosity * rest_pore_pressure {
+                    return Err(self.err(
+                        &join(&k, "outer_pore_pressure"),
+                        format!(
+                            "expected outer_pore_pressure <= porosity x rest_pore_pressure = {} Pa (the strain-free \
+                             saturation p0k / p0 cannot exceed the porosity), found {outer_pore_pressure} Pa",
+                            porosity * rest_pore_pressure
+                        ),
+                    ));
+                }
+                out[i] = Some(PorousPhase { permeability, outer_pore_pressure });
+            }
+        }
+        Ok(Porous {
+            porosity,
+            rest_pore_pressure,
+            biot_modulus,
+            swelling,
+            capillarity,
+            absorption,
+            gains_mass,
+            phases: out,
+        })
     }
 
     /// Exactly one of `box`, `sphere`, `cylinder` in the table at `path`.

@@ -125,6 +125,10 @@ soa! {
         density: Vec<f32> ["kg/m^3"],
         /// Outer volume fraction alpha_k of each phase (P-Eq. 6).
         alpha: Vec<Vec<f32>> [""],
+        /// Inner volume fraction beta_k of each phase, the part of the
+        /// particle inside a porous solid (P-Eq. 7); sum_k (alpha_k +
+        /// beta_k) = 1.
+        beta: Vec<Vec<f32>> [""],
         /// Stable particle id.
         id: Vec<u32> [""],
     }
@@ -202,6 +206,11 @@ soa! {
         stress: Vec<f32> ["Pa"],
         /// tr(eps) of the corotated strain of the last step (output only).
         strain_trace: Vec<f32> [""],
+        /// sum_k phi_sk, the absorbed volume ratio of the last step (P-Eq. 15;
+        /// output only).
+        saturation: Vec<f32> [""],
+        /// Pore pressure p^pore of the last step, Pa (P-Eq. 9; output only).
+        pore_pressure: Vec<f32> ["Pa"],
         /// Stable particle id (after the fluid and wall ids).
         id: Vec<u32> [""],
     }
@@ -225,6 +234,7 @@ mod tests {
             x: vec![0.0, 1.0, 2.0],
             y: vec![10.0, 11.0, 12.0],
             alpha: vec![vec![0.1, 0.2, 0.3], vec![0.9, 0.8, 0.7]],
+            beta: vec![vec![0.0; 3], vec![0.0; 3]],
             id: vec![5, 6, 7],
             ..Default::default()
         };
@@ -245,6 +255,6 @@ mod tests {
         assert_eq!(s.pressure, vec![102.0, 100.0, 101.0]);
         let mut names = Vec::new();
         s.for_each_column(|n, _, _| names.push(n));
-        assert!(names.contains(&"pressure") && names.contains(&"alpha") && names.len() == 10);
+        assert!(names.contains(&"pressure") && names.contains(&"alpha") && names.len() == 11);
     }
 }

@@ -1,0 +1,333 @@
+//! The porous coupling (P §4, §5; PHYSICS.md §4.2): passes 6, 7 and 9 of
+//! PHYSICS.md §6 and the absorption exchange of pass 12.
+//!
+//! Solid-side gathers (solid particles in the sorted order of the solid
+//! pair lists):
+//! - [`absorbed_volume`]: phi_sk, P-Eq. 15;
+//! - [`pore_gradient`]: grad p^pore_s, P-Eq. 19 (sign per PHYSICS.md §8.1).
+//!
+//! Fluid-side gathers over the fluid-solid pairs, which must still hold the
+//! plain kernel gradients grad W_fs (before the pressure solve scales them
+//! by pair volumes: an inner particle has no pressure-solve volume, and its
+//! porous terms must not vanish with it):
+//! - [`surface_normals`]: n_f = sum_s V_s grad W_fs (P-Eq. 18) and the
+//!   capillary normal sum_s psi_s V_s grad W_fs;
+//! - [`fluid_phase_terms`], once per phase: u_betak,f and q_k,f (P-Eqs.
+//!   16-17), grad p^pore_fk (P-Eq. 20) and the transfer rate Gamma_k
+//!   (P-Eqs. 13, 21, 22).
+//!
+//! Conventions (PHYSICS.md §0, §8.1): grad W_fs = grad_f W(x_f - x_s),
+//! pointing from f towards s; gradients in difference form with the
+//! `(A_s - A_f)` order, so P-Eqs. 19-21 get the signs of §4.2: Darcy flow
+//! goes down the pore-pressure gradient and Gamma > 0 is absorption.
+//!
+//! Volumes: V_s = m_s / rho_s with rho_s = sum_SS m W (P §5) for porous
+//! solid particles and 0 for the others, so a non-porous solid takes no part
+//! in any porous sum. The absorbed volume of P-Eq. 15 is divided by the
+//! lattice volume h^3 (= V_s0 of a solid particle sampled on the lattice,
+//! and m_f / rho_fm of every fluid particle): with the partition of unity
+//! W_fs / N_f, sum_s h^3 phi_sk = sum_f h^3 beta_fk exactly, so the
+//! absorbed volume seen by the solids is the fluid's inner volume.
+
+use crate::blocks::BLOCK;
+use crate::iisph::{Vel, VelMut};
+use crate::neighbors::PairLists;
+use rayon::prelude::*;
+
+/// Pass 6, P-Eq. 15 for phase k: phi_sk = sum_f beta_fk W_sf / N_f over the
+/// solid-fluid pairs `sf`, for the solid particles with `porous[s]` != 0
+/// (0 for the others). `beta_over_n` is beta_fk / N_f per fluid particle
+/// (0 where N_f = 0).
+pub fn absorbed_volume(sf: &PairLists, beta_over_n: &[f32], porous: &[f32], out: &mut [f32]) {
+    out.par_chunks_mut(BLOCK).zip(sf.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
+        for (q, o) in o.iter_mut().enumerate() {
+            let s = b * BLOCK + q;
+            *o = if porous[s] != 0.0 {
+                blk.range(q).map(|p| beta_over_n[blk.j[p] as usize] * blk.w[p]).sum::<f32>()
+            } else {
+                0.0
+            };
+        }
+    });
+}
+
+/// Pass 7, P-Eq. 19: grad p^pore_s = sum_s' V_s' (p_s' - p_s) grad W_ss'
+/// over the solid-solid pairs `ss`, where `vol` is V_s' (0 for non-porous
+/// particles, which neither get nor give a gradient).
+pub fn pore_gradient(ss: &PairLists, vol: &[f32], pore_pressure: &[f32], out: VelMut) {
+    out.x
+        .par_chunks_mut(BLOCK)
+        .zip(out.y.par_chunks_mut(BLOCK))
+        .zip(out.z.par_chunks_mut(BLOCK))
+        .zip(ss.used().par_iter())
+        .enumerate()
+        .for_each(|(b, (((gx, gy), gz), blk))| {
+            for q in 0..gx.len() {
+                let s = b * BLOCK + q;
+                let mut g = [0.0f32; 3];
+                if vol[s] > 0.0 {
+                    let ps = pore_pressure[s];
+                    for p in blk.range(q) {
+                        let j = blk.j[p] as usize;
+                        let c = vol[j] * (pore_pressure[j] - ps);
+                        g[0] += c * blk.gx[p];
+                        g[1] += c * blk.gy[p];
+                        g[2] += c * blk.gz[p];
+                    }
+                }
+                (gx[q], gy[q], gz[q]) = (g[0], g[1], g[2]);
+            }
+        });
+}
+
+/// Pass 9, P-Eqs. 14 and 18: per fluid particle, the unnormalised colour
+/// gradient of the porous solids n_f = sum_s V_s grad W_fs (pointing into
+/// the solid, fading inside it; PHYSICS.md §8.9) into `normal`, and
+/// sum_s psi_s V_s grad W_fs into `capillary` (psi_s the capillary strength
+/// of the solid's region), over the fluid-solid pairs `fs`.
+pub fn surface_normals(fs: &PairLists, vol: &[f32], psi: &[f32], normal: VelMut, capillary: VelMut) {
+    normal
+        .x
+        .par_chunks_mut(BLOCK)
+        .zip(normal.y.par_chunks_mut(BLOCK))
+        .zip(normal.z.par_chunks_mut(BLOCK))
+        .zip(
+            capillary
+                .x
+                .par_chunks_mut(BLOCK)
+                .zip(capillary.y.par_chunks_mut(BLOCK))
+                .zip(capillary.z.par_chunks_mut(BLOCK)),
+        )
+        .zip(fs.used().par_iter())
+        .for_each(|((((nx, ny), nz), ((cx, cy), cz)), blk)| {
+            for q in 0..nx.len() {
+                let (mut n, mut c) = ([0.0f32; 3], [0.0f32; 3]);
+                for p in blk.range(q) {
+                    let s = blk.j[p] as usize;
+                    let (v, vp) = (vol[s], vol[s] * psi[s]);
+                    n[0] += v * blk.gx[p];
+                    n[1] += v * blk.gy[p];
+                    n[2] += v * blk.gz[p];
+                    c[0] += vp * blk.gx[p];
+                    c[1] += vp * blk.gy[p];
+                    c[2] += vp * blk.gz[p];
+                }
+                (nx[q], ny[q], nz[q]) = (n[0], n[1], n[2]);
+                (cx[q], cy[q], cz[q]) = (c[0], c[1], c[2]);
+            }
+        });
+}
+
+/// Solid-side inputs of [`fluid_phase_terms`] for one phase k, per solid
+/// particle in the sorted order.
+#[derive(Clone, Copy)]
+pub struct SolidPhase<'a> {
+    /// V_s = m_s / rho_s (0 for non-porous particles), m^3.
+    pub vol: &'a [f32],
+    /// p^pore_s, Pa.
+    pub pore_pressure: &'a [f32],
+    /// phi_sk.
+    pub phi: &'a [f32],
+    /// p_0k of the particle's region, Pa.
+    pub outer_pressure: &'a [f32],
+    /// K k_wk / mu_k of the particle's region, m^2/(Pa s) (0: phase k is
+    /// not absorbed there).
+    pub conductivity: &'a [f32],
+    /// u_betak,s = q_k,s / e + v_s, m/s.
+    pub u_beta: Vel<'a>,
+    /// Darcy flux q_k,s, m/s.
+    pub q: Vel<'a>,
+}
+
+/// Fluid-side inputs of [`fluid_phase_terms`] for one phase k.
+#[derive(Clone, Copy)]
+pub struct FluidPhase<'a> {
+    /// alpha_fk.
+    pub alpha: &'a [f32],
+    /// 1 / N_f (0 where N_f = 0).
+    pub inv_n: &'a [f32],
+    /// n_f of [`surface_normals`].
+    pub normal: Vel<'a>,
+}
+
+/// Outputs of [`fluid_phase_terms`] for one phase k, per fluid particle.
+pub struct FluidPhaseOut<'a> {
+    /// u_betak,f = sum_s u_betak,s W_fs / N_f (P-Eq. 16), m/s.
+    pub u_beta: VelMut<'a>,
+    /// q_k,f = sum_s q_k,s W_fs / N_f (P-Eq. 17), m/s.
+    pub q: VelMut<'a>,
+    /// grad p^pore_fk = sum_s V_s (p^pore_s - p_0k) grad W_fs (P-Eq. 20),
+    /// Pa/m.
+    pub grad_pore: VelMut<'a>,
+    /// Gamma_k = D_k . n_f with D_k = -sum_s V_s K k_wk / mu_k
+    /// (alpha_fk + phi_sk)(p^pore_s - p_0k) grad W_fs (P-Eqs. 13, 21, 22),
+    /// 1/s; > 0 is absorption.
+    pub gamma: &'a mut [f32],
+}
+
+/// Pass 9 for phase k over the fluid-solid pairs `fs` (module doc).
+pub fn fluid_phase_terms(fs: &PairLists, solid: SolidPhase, fluid: FluidPhase, out: FluidPhaseOut) {
+    let FluidPhaseOut { u_beta, q, grad_pore, gamma } = out;
+    u_beta
+        .x
+        .par_chunks_mut(BLOCK)
+        .zip(u_beta.y.par_chunks_mut(BLOCK))
+        .zip(u_beta.z.par_chunks_mut(BLOCK))
+        .zip(q.x.par_chunks_mut(BLOCK).zip(q.y.par_chunks_mut(BLOCK)).zip(q.z.par_chunks_mut(BLOCK)))
+        .zip(
+            grad_pore
+                .x
+                .par_chunks_mut(BLOCK)
+                .zip(grad_pore.y.par_chunks_mut(BLOCK))
+                .zip(grad_pore.z.par_chunks_mut(BLOCK))
+                .zip(gamma.par_chunks_mut(BLOCK)),
+        )
+        .zip(fs.used().par_iter())
+        .enumerate()
+        .for_each(|(b, (((((ubx, uby), ubz), ((qx, qy), qz)), (((gx, gy), gz), ga)), blk))| {
+            for l in 0..ubx.len() {
+                let f = b * BLOCK + l;
+                let (inv_n, af) = (fluid.inv_n[f], fluid.alpha[f]);
+                let (mut ub, mut qf, mut gp, mut d) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
+                for p in blk.range(l) {
+                    let s = blk.j[p] as usize;
+                    let v = solid.vol[s];
+                    if v == 0.0 {
+                        continue;
+                    }
+                    let wn = blk.w[p] * inv_n;
+                    let g = [blk.gx[p], blk.gy[p], blk.gz[p]];
+                    let dp = solid.pore_pressure[s] - solid.outer_pressure[s];
+                    let cd = -v * solid.conductivity[s] * (af + solid.phi[s]) * dp;
+                    let us = [solid.u_beta.x[s], solid.u_beta.y[s], solid.u_beta.z[s]];
+                    let qs = [solid.q.x[s], solid.q.y[s], solid.q.z[s]];
+                    for c in 0..3 {
+                        ub[c] += wn * us[c];
+                        qf[c] += wn * qs[c];
+                        gp[c] += v * dp * g[c];
+                        d[c] += cd * g[c];
+                    }
+                }
+                (ubx[l], uby[l], ubz[l]) = (ub[0], ub[1], ub[2]);
+                (qx[l], qy[l], qz[l]) = (qf[0], qf[1], qf[2]);
+                (gx[l], gy[l], gz[l]) = (gp[0], gp[1], gp[2]);
+                let n = fluid.normal;
+                ga[l] = d[0] * n.x[f] + d[1] * n.y[f] + d[2] * n.z[f];
+            }
+        });
+}
+
+/// Adds a velocity term e (scaled by `scale`) to the phase velocities of
+/// the drift passes (`drift::phase_velocity`): v_k += scale e and
+/// w_k += scale alpha_k e, where the particle's fraction sum `frac_f` is at
+/// least `crate::phases::MIN_ALPHA_F` (elsewhere the drift is 0). With
+/// e = grad p^pore_fk and scale = -phi this is the porous term of P-Eq. 11,
+/// with e = q_k,f and scale = -tau' the Darcy term of P-Eq. 12: after
+/// `drift::mixture_velocity` and `drift::drift_velocity` both appear as
+/// e_k - sum_k' c_k' e_k'.
+pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: Vel, scale: f32, v: VelMut, w: VelMut) {
+    v.x.par_chunks_mut(BLOCK)
+        .zip(v.y.par_chunks_mut(BLOCK))
+        .zip(v.z.par_chunks_mut(BLOCK))
+        .zip(w.x.par_chunks_mut(BLOCK).zip(w.y.par_chunks_mut(BLOCK)).zip(w.z.par_chunks_mut(BLOCK)))
+        .enumerate()
+        .for_each(|(b, (((vx, vy), vz), ((wx, wy), wz)))| {
+            for q in 0..vx.len() {
+                let i = b * BLOCK + q;
+                if frac_f[i] < crate::phases::MIN_ALPHA_F {
+                    continue;
+                }
+                let t = [scale * e.x[i], scale * e.y[i], scale * e.z[i]];
+                let a = frac_k[i];
+                vx[q] += t[0];
+                vy[q] += t[1];
+                vz[q] += t[2];
+                wx[q] += a * t[0];
+                wy[q] += a * t[1];
+                wz[q] += a * t[2];
+            }
+        });
+}
+
+/// Below this fraction the absorption exchange moves all of it
+/// (PHYSICS.md §4.2, after [AC] `ComputeFluidChange`).
+pub const MIN_EXCHANGE_FRACTION: f32 = 0.001;
+
+/// Pass 12, the absorption exchange of phase k within each fluid particle
+/// (P-Eqs. 6-7: +div D_k in alpha, -div D_k in beta): x = dt Gamma_k moves
+/// from `alpha` to `beta` (x > 0, absorption) or back (x < 0, emission),
+/// at most what the source holds, and all of it where less than
+/// [`MIN_EXCHANGE_FRACTION`] would be left. alpha_k + beta_k is unchanged
+/// up to rounding, so every phase's mass is conserved.
+pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f32], beta: &mut [f32]) {
+    alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
+        for q in 0..a.len() {
+            let x = dt * gamma[b * BLOCK + q];
+            let moved = if x > 0.0 {
+                let src = a[q].max(0.0);
+                if src - x < MIN_EXCHANGE_FRACTION {
+                    src
+                } else {
+                    x
+                }
+            } else if x < 0.0 {
+                let src = be[q].max(0.0);
+                if src + x < MIN_EXCHANGE_FRACTION {
+                    -src
+                } else {
+                    x
+                }
+            } else {
+                0.0
+            };
+            a[q] -= moved;
+            be[q] += moved;
+        }
+    });
+}
+
+/// P Alg. 4's fallback, at the start of a step: a fluid particle with no
+/// porous solid within reach (N_f = 0) has nothing to be inside of, so its
+/// inner fractions become outer ones, alpha_k += beta_k, beta_k = 0.
+pub fn release_outside(n_f: &[f32], alpha: &mut [f32], beta: &mut [f32]) {
+    alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
+        for q in 0..a.len() {
+            if n_f[b * BLOCK + q] <= 0.0 && be[q] != 0.0 {
+                a[q] += be[q];
+                be[q] = 0.0;
+            }
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exchange_conserves_each_particle_and_clamps() {
+        let gamma = [10.0, -10.0, 500.0, -500.0, 0.0];
+        let mut a = vec![0.5, 0.5, 0.4, 0.5, 0.3];
+        let mut b = vec![0.5, 0.5, 0.6, 0.2, 0.7];
+        let (a0, b0) = (a.clone(), b.clone());
+        exchange(&gamma, 1e-3, &mut a, &mut b);
+        for i in 0..5 {
+            assert!((a[i] + b[i] - a0[i] - b0[i]).abs() < 1e-7, "particle {i}");
+        }
+        assert!((a[0] - 0.49).abs() < 1e-7 && (b[1] - 0.49).abs() < 1e-7);
+        // dt Gamma = 0.5 > alpha = 0.4: all of alpha moves, no more.
+        assert_eq!((a[2], b[2]), (0.0, 1.0));
+        // Emission of 0.5 > beta = 0.2: all of beta moves back.
+        assert_eq!((a[3], b[3]), (0.7, 0.0));
+        assert_eq!((a[4], b[4]), (0.3, 0.7));
+    }
+
+    #[test]
+    fn release_outside_moves_beta_to_alpha_only_without_solids() {
+        let n = [0.0, 3.0];
+        let mut a = vec![0.2, 0.2];
+        let mut b = vec![0.8, 0.8];
+        release_outside(&n, &mut a, &mut b);
+        assert_eq!((a, b), (vec![1.0, 0.2], vec![0.0, 0.8]));
+    }
+}

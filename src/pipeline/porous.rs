@@ -1,0 +1,270 @@
+//! The porous coupling in the step (P §4-5 and Algorithms 2-3; PHYSICS.md
+//! §4.2): passes 6-7 and 9 of PHYSICS.md §6, and the porous accelerations
+//! a^pore and a^cap of P-Eq. 8. The gathers are in
+//! `porosph_kernels::porous`; this module feeds them, in the order the
+//! step needs:
+//!
+//! 1. [`partition`], right after the neighbour search: N_f (P-Eq. 15) and
+//!    P Alg. 4's fallback (beta back to alpha where N_f = 0).
+//! 2. [`pore_state`], before the pressure solve scales the fluid-solid pair
+//!    gradients: phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
+//!    grad p^pore, q_k and u_betak on the solids (P-Eqs. 1, 19), and on the
+//!    fluid u_betak,f, q_k,f, grad p^pore_fk, Gamma_k and the surface
+//!    normals (P-Eqs. 16-18, 20-22).
+//! 3. [`accelerations`], after the pressure solve: a^cap and a^pore.
+//!
+//! The pore pressure uses the volumetric strain tr(eps) of the previous
+//! step's elastic solve (the solid store's `strain_trace`): the elastic
+//! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
+//! the strain it sees lags by one step (0 at the start: strain-free).
+
+use super::{Params, Workspace};
+use crate::store::{FluidStore, SolidStore};
+use bumpalo::Bump;
+use porosph_kernels::blocks::BLOCK;
+use porosph_kernels::iisph::{self, Vel, VelMut};
+use porosph_kernels::porous::{
+    absorbed_volume, fluid_phase_terms, pore_gradient, release_outside, surface_normals, FluidPhase, FluidPhaseOut,
+    SolidPhase,
+};
+use rayon::prelude::*;
+
+fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
+    arena.alloc_slice_fill_copy(n, 0.0f32)
+}
+
+/// Pass 2's part of the porous coupling: N_f = sum_s W_fs over the porous
+/// solid particles within reach of each fluid particle (returned, with the
+/// porous mask of the solids in the sorted order of the solid pair lists),
+/// and P Alg. 4's fallback: where N_f = 0 every beta_k moves back to alpha_k.
+pub(super) fn partition<'a>(
+    p: &Params,
+    fluid: &mut FluidStore,
+    solids: &SolidStore,
+    w: &Workspace,
+    arena: &'a Bump,
+) -> (&'a [f32], &'a [f32]) {
+    let mask = arena.alloc_slice_fill_iter(
+        w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
+    );
+    let n_f = zeros(arena, fluid.len());
+    iisph::kernel_sums(&w.fs, mask, n_f);
+    for (a, b) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()) {
+        release_outside(n_f, a, b);
+    }
+    (n_f, mask)
+}
+
+/// The fluid-side porous fields of one step, per fluid particle (per-phase
+/// fields flat: phase k at `[k n, (k + 1) n)`).
+pub(super) struct PoreTerms<'a> {
+    /// sum_s psi_s V_s grad W_fs: a^cap = (sum_k beta_k) times this (P-Eq. 18).
+    pub capillary: [&'a [f32]; 3],
+    /// u_betak,f (P-Eq. 16), m/s.
+    pub u_beta: [&'a [f32]; 3],
+    /// q_k,f (P-Eq. 17), m/s.
+    pub q: [&'a [f32]; 3],
+    /// grad p^pore_fk (P-Eq. 20), Pa/m.
+    pub grad_pore: [&'a [f32]; 3],
+    /// Gamma_k (P-Eq. 22), 1/s.
+    pub gamma: &'a [f32],
+    /// eta p^pore per solid particle (store order), Pa, for the stress
+    /// (P-Eq. 5); `None` where no porous solid swells.
+    pub pore_stress: Option<&'a [f32]>,
+    /// Largest Darcy speed max_k |u_rk| on the solids, m/s (time step).
+    pub max_darcy_speed: f32,
+}
+
+/// Passes 6, 7 and 9 (module doc). `n_f` and `mask` come from
+/// [`partition`]; `w.fs` must still hold plain kernel gradients.
+pub(super) fn pore_state<'a>(
+    p: &Params,
+    fluid: &FluidStore,
+    solids: &mut SolidStore,
+    w: &Workspace,
+    arena: &'a Bump,
+    n_f: &[f32],
+    mask: &[f32],
+) -> PoreTerms<'a> {
+    let (n, ns, np) = (fluid.len(), solids.len(), fluid.alpha.len());
+    let perm = &w.solid_perm;
+    let cell = p.cell_volume();
+    let region = |k: usize| p.porous[solids.body[perm[k] as usize] as usize].as_ref();
+    let inv_n = arena.alloc_slice_fill_iter(n_f.iter().map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 }));
+
+    // P-Eq. 15: phi_sk (sorted order), phase by phase.
+    let phi = zeros(arena, np * ns);
+    let beta_over_n = zeros(arena, n);
+    for (k, out) in phi.chunks_mut(ns.max(1)).enumerate().take(np) {
+        beta_over_n.par_iter_mut().zip(fluid.beta[k].par_iter()).zip(inv_n.par_iter()).for_each(|((o, b), i)| {
+            *o = b * i;
+        });
+        absorbed_volume(&w.sf, beta_over_n, mask, out);
+    }
+    let phi: &[&[f32]] = arena.alloc_slice_fill_iter(phi.chunks(ns.max(1)).take(np));
+
+    // The wet mass of the paper's Example 3: m_s = m_s0 + sum_k phi_sk rho_k V_s0.
+    for (k, &i) in perm.iter().enumerate() {
+        let i = i as usize;
+        let b = solids.body[i] as usize;
+        if p.porous[b].as_ref().is_some_and(|r| r.gains_mass) {
+            let wet: f32 = (0..np).map(|ph| phi[ph][k] * p.phase_density[ph]).sum();
+            solids.mass[i] = p.solid_rest_mass[b] + wet * cell;
+        }
+    }
+
+    // P-Eq. 9: p^pore = p_0 sum_k phi_sk - B tr(eps); V_s = m_s / rho_s (P §5).
+    let pore = zeros(arena, ns);
+    let vol = zeros(arena, ns);
+    {
+        let mass_s = arena.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
+        let rho_s = zeros(arena, ns);
+        iisph::kernel_sums(&w.ss, mass_s, rho_s);
+        for k in 0..ns {
+            let i = perm[k] as usize;
+            let sat: f32 = (0..np).map(|ph| phi[ph][k]).sum();
+            if let Some(r) = region(k) {
+                pore[k] = r.rest_pore_pressure * sat - r.biot_modulus * solids.strain_trace[i];
+                vol[k] = if rho_s[k] > 0.0 { mass_s[k] / rho_s[k] } else { 0.0 };
+            }
+            solids.saturation[i] = sat;
+            solids.pore_pressure[i] = pore[k];
+        }
+    }
+
+    // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
+    // u_rk = q_k / e, u_betak = u_rk + v_s.
+    let (gx, gy, gz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    pore_gradient(&w.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
+    let mut max_darcy = 0.0f32;
+    let mut solid_phase = |k: usize| {
+        let (qx, qy, qz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+        let (ux, uy, uz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+        let p0k = zeros(arena, ns);
+        let cond = zeros(arena, ns);
+        for s in 0..ns {
+            let i = perm[s] as usize;
+            let Some(r) = region(s) else { continue };
+            let mu = p.phase_viscosity[k];
+            let kw = if mu > 0.0 { r.permeability[k] / mu } else { 0.0 };
+            (qx[s], qy[s], qz[s]) = (-kw * gx[s], -kw * gy[s], -kw * gz[s]);
+            let e = r.porosity;
+            (ux[s], uy[s], uz[s]) = (qx[s] / e + solids.vx[i], qy[s] / e + solids.vy[i], qz[s] / e + solids.vz[i]);
+            max_darcy = max_darcy.max((qx[s] * qx[s] + qy[s] * qy[s] + qz[s] * qz[s]).sqrt() / e);
+            p0k[s] = r.outer_pore_pressure[k];
+            cond[s] = r.absorption * kw;
+        }
+        (Vel { x: qx, y: qy, z: qz }, Vel { x: ux, y: uy, z: uz }, &*p0k, &*cond)
+    };
+    let per_solid: Vec<_> = (0..np).map(&mut solid_phase).collect();
+
+    // Pass 9 on the fluid.
+    let (nx, ny, nz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+    let (cx, cy, cz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+    let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
+    surface_normals(
+        &w.fs,
+        vol,
+        psi,
+        VelMut { x: &mut *nx, y: &mut *ny, z: &mut *nz },
+        VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz },
+    );
+    let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
+    let [ubx, uby, ubz] = flat(arena);
+    let [qfx, qfy, qfz] = flat(arena);
+    let [gpx, gpy, gpz] = flat(arena);
+    let gamma = zeros(arena, np * n);
+    for (k, (q_s, u_s, p0k, cond)) in per_solid.into_iter().enumerate() {
+        let r = k * n..(k + 1) * n;
+        let solid = SolidPhase {
+            vol,
+            pore_pressure: pore,
+            phi: phi[k],
+            outer_pressure: p0k,
+            conductivity: cond,
+            u_beta: u_s,
+            q: q_s,
+        };
+        let fl = FluidPhase { alpha: &fluid.alpha[k], inv_n, normal: Vel { x: nx, y: ny, z: nz } };
+        let out = FluidPhaseOut {
+            u_beta: VelMut { x: &mut ubx[r.clone()], y: &mut uby[r.clone()], z: &mut ubz[r.clone()] },
+            q: VelMut { x: &mut qfx[r.clone()], y: &mut qfy[r.clone()], z: &mut qfz[r.clone()] },
+            grad_pore: VelMut { x: &mut gpx[r.clone()], y: &mut gpy[r.clone()], z: &mut gpz[r.clone()] },
+            gamma: &mut gamma[r],
+        };
+        fluid_phase_terms(&w.fs, solid, fl, out);
+    }
+
+    let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);
+    let pore_stress = swells.then(|| {
+        let out = zeros(arena, ns);
+        for (k, &i) in perm.iter().enumerate() {
+            out[i as usize] = region(k).map_or(0.0, |r| r.swelling) * pore[k];
+        }
+        &*out
+    });
+    PoreTerms {
+        capillary: [cx, cy, cz],
+        u_beta: [ubx, uby, ubz],
+        q: [qfx, qfy, qfz],
+        grad_pore: [gpx, gpy, gpz],
+        gamma,
+        pore_stress,
+        max_darcy_speed: max_darcy,
+    }
+}
+
+/// The porous accelerations of P-Eq. 8, added to `ap` (which holds a^p):
+/// - a^cap = psi (sum_k beta_k) n_f (P-Eqs. 14, 18);
+/// - a^pore = sum_k beta_k (rho_k u_betak,f - rho_betam u_m) / (rho_fm dt)
+///   (P-Eq. 10) = sum_k beta_k rho_k (u_betak,f - u_m) / (rho_fm dt), with
+///   u_m = u* + dt (a^p + a^cap) the velocity the particle would have
+///   without it. So u^{n+1} = B ubar_beta + (1 - B) u_m with
+///   B = sum_k beta_k rho_k / rho_fm, the inner mass fraction, and
+///   ubar_beta the inner phases' mass-weighted velocity: a fully inner
+///   particle moves with the Darcy velocity of its solid in one step, as
+///   PHYSICS.md §4.2 says.
+pub(super) fn accelerations(
+    p: &Params,
+    fluid: &FluidStore,
+    terms: &PoreTerms,
+    rest_density: &[f32],
+    u_star: Vel,
+    dt: f32,
+    ap: [&mut [f32]; 3],
+) {
+    let n = fluid.len();
+    let np = fluid.beta.len();
+    let [apx, apy, apz] = ap;
+    apx.par_chunks_mut(BLOCK).zip(apy.par_chunks_mut(BLOCK)).zip(apz.par_chunks_mut(BLOCK)).enumerate().for_each(
+        |(b, ((ax, ay), az))| {
+            for q in 0..ax.len() {
+                let i = b * BLOCK + q;
+                let (mut bsum, mut bmass) = (0.0f32, 0.0f32);
+                let mut u_in = [0.0f32; 3];
+                for k in 0..np {
+                    let bk = fluid.beta[k][i];
+                    bsum += bk;
+                    let m = bk * p.phase_density[k];
+                    bmass += m;
+                    let j = k * n + i;
+                    u_in[0] += m * terms.u_beta[0][j];
+                    u_in[1] += m * terms.u_beta[1][j];
+                    u_in[2] += m * terms.u_beta[2][j];
+                }
+                if bsum <= 0.0 {
+                    continue;
+                }
+                let cap = [bsum * terms.capillary[0][i], bsum * terms.capillary[1][i], bsum * terms.capillary[2][i]];
+                let a = [&mut ax[q], &mut ay[q], &mut az[q]];
+                let us = [u_star.x[i], u_star.y[i], u_star.z[i]];
+                let rho = rest_density[i];
+                for (c, a) in a.into_iter().enumerate() {
+                    let um = us[c] + dt * (*a + cap[c]);
+                    let pore = (u_in[c] - bmass * um) / (rho * dt);
+                    *a += cap[c] + pore;
+                }
+            }
+        },
+    );
+}
