@@ -122,7 +122,7 @@ fn round_trip_keeps_every_array_and_scalar_with_either_reader() {
         assert_eq!(c.format_version, 1);
         // Outer volume per phase = h^3 sum alpha_k (P §6.1): water in the
         // first block and 30 % of the second, oil 70 % of the second.
-        let v = phase_volumes(&c.state);
+        let v = phase_volumes(&c.state).0;
         let h3 = f64::from(0.02f32).powi(3);
         assert_eq!(v.len(), 2);
         for (k, vk) in v.iter().enumerate() {

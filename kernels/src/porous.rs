@@ -10,11 +10,10 @@
 //! plain kernel gradients grad W_fs (before the pressure solve scales them
 //! by pair volumes: an inner particle has no pressure-solve volume, and its
 //! porous terms must not vanish with it):
-//! - [`surface_normals`]: n_f = sum_s V_s grad W_fs (P-Eq. 18) and the
-//!   capillary normal sum_s psi_s V_s grad W_fs;
+//! - [`capillary_normal`]: sum_s psi_s V_s grad W_fs (P-Eq. 18);
 //! - [`fluid_phase_terms`], once per phase: u_betak,f and q_k,f (P-Eqs.
 //!   16-17), grad p^pore_fk (P-Eq. 20) and the transfer rate Gamma_k
-//!   (P-Eqs. 13, 21, 22).
+//!   (P-Eqs. 13, 21, 22, in pair form: see [`FluidPhaseOut::gamma`]).
 //!
 //! Conventions (PHYSICS.md §0, §8.1): grad W_fs = grad_f W(x_f - x_s),
 //! pointing from f towards s; gradients in difference form with the
@@ -80,39 +79,27 @@ pub fn pore_gradient(ss: &PairLists, vol: &[f32], pore_pressure: &[f32], out: Ve
         });
 }
 
-/// Pass 9, P-Eqs. 14 and 18: per fluid particle, the unnormalised colour
-/// gradient of the porous solids n_f = sum_s V_s grad W_fs (pointing into
-/// the solid, fading inside it; PHYSICS.md §8.9) into `normal`, and
-/// sum_s psi_s V_s grad W_fs into `capillary` (psi_s the capillary strength
-/// of the solid's region), over the fluid-solid pairs `fs`.
-pub fn surface_normals(fs: &PairLists, vol: &[f32], psi: &[f32], normal: VelMut, capillary: VelMut) {
-    normal
-        .x
+/// Pass 9, P-Eqs. 14 and 18: per fluid particle, the capillary normal
+/// sum_s psi_s V_s grad W_fs over the fluid-solid pairs `fs` (psi_s the
+/// capillary strength of the solid's region): psi times the unnormalised
+/// colour gradient of the porous solids, which points into the solid and
+/// fades inside it (PHYSICS.md §8.9). a^cap = (sum_k beta_k) times this.
+pub fn capillary_normal(fs: &PairLists, vol: &[f32], psi: &[f32], out: VelMut) {
+    out.x
         .par_chunks_mut(BLOCK)
-        .zip(normal.y.par_chunks_mut(BLOCK))
-        .zip(normal.z.par_chunks_mut(BLOCK))
-        .zip(
-            capillary
-                .x
-                .par_chunks_mut(BLOCK)
-                .zip(capillary.y.par_chunks_mut(BLOCK))
-                .zip(capillary.z.par_chunks_mut(BLOCK)),
-        )
+        .zip(out.y.par_chunks_mut(BLOCK))
+        .zip(out.z.par_chunks_mut(BLOCK))
         .zip(fs.used().par_iter())
-        .for_each(|((((nx, ny), nz), ((cx, cy), cz)), blk)| {
-            for q in 0..nx.len() {
-                let (mut n, mut c) = ([0.0f32; 3], [0.0f32; 3]);
+        .for_each(|(((cx, cy), cz), blk)| {
+            for q in 0..cx.len() {
+                let mut c = [0.0f32; 3];
                 for p in blk.range(q) {
                     let s = blk.j[p] as usize;
-                    let (v, vp) = (vol[s], vol[s] * psi[s]);
-                    n[0] += v * blk.gx[p];
-                    n[1] += v * blk.gy[p];
-                    n[2] += v * blk.gz[p];
+                    let vp = vol[s] * psi[s];
                     c[0] += vp * blk.gx[p];
                     c[1] += vp * blk.gy[p];
                     c[2] += vp * blk.gz[p];
                 }
-                (nx[q], ny[q], nz[q]) = (n[0], n[1], n[2]);
                 (cx[q], cy[q], cz[q]) = (c[0], c[1], c[2]);
             }
         });
@@ -146,8 +133,6 @@ pub struct FluidPhase<'a> {
     pub alpha: &'a [f32],
     /// 1 / N_f (0 where N_f = 0).
     pub inv_n: &'a [f32],
-    /// n_f of [`surface_normals`].
-    pub normal: Vel<'a>,
 }
 
 /// Outputs of [`fluid_phase_terms`] for one phase k, per fluid particle.
@@ -159,9 +144,25 @@ pub struct FluidPhaseOut<'a> {
     /// grad p^pore_fk = sum_s V_s (p^pore_s - p_0k) grad W_fs (P-Eq. 20),
     /// Pa/m.
     pub grad_pore: VelMut<'a>,
-    /// Gamma_k = D_k . n_f with D_k = -sum_s V_s K k_wk / mu_k
-    /// (alpha_fk + phi_sk)(p^pore_s - p_0k) grad W_fs (P-Eqs. 13, 21, 22),
-    /// 1/s; > 0 is absorption.
+    /// The transfer rate Gamma_k, 1/s, > 0 absorption: the divergence of
+    /// the absorption flux D_k = -K k_wk / mu_k (alpha_k + phi_sk)
+    /// grad p^pore_k (P-Eq. 13) in pair form,
+    ///
+    /// Gamma_k = sum_s V_s^2 K k_wk / mu_k (alpha_fk + phi_sk)
+    ///           (p_0k - p^pore_s) |grad W_fs|^2,
+    ///
+    /// each fluid-solid pair exchanging in proportion to its own pore
+    /// pressure difference [inferred]. P-Eqs. 21-22 write it as D_f . n_f,
+    /// D_f = sum_s V_s (..) grad W_fs and n_f = sum_s V_s grad W_fs, which
+    /// both vanish inside the solid, where the solid's colour field is
+    /// flat: a partly absorbed particle that the pore and capillary
+    /// accelerations have drawn inside then keeps its outer fraction for
+    /// good, and its row in the pressure solve fights the solid rows around
+    /// it (measured: the soak of `tests/porous.rs` at K = 4, k_w = 4e-7
+    /// reached its equilibrium and then blew up at t = 1.2 s). The pair
+    /// form has the same sign, the same equilibrium p^pore = p_0k and the
+    /// same K k_wk scaling (the paper's Fig. 4 trends), and goes on
+    /// converting such a particle until its solids are saturated.
     pub gamma: &'a mut [f32],
 }
 
@@ -188,7 +189,7 @@ pub fn fluid_phase_terms(fs: &PairLists, solid: SolidPhase, fluid: FluidPhase, o
             for l in 0..ubx.len() {
                 let f = b * BLOCK + l;
                 let (inv_n, af) = (fluid.inv_n[f], fluid.alpha[f]);
-                let (mut ub, mut qf, mut gp, mut d) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
+                let (mut ub, mut qf, mut gp, mut rate) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3], 0.0f32);
                 for p in blk.range(l) {
                     let s = blk.j[p] as usize;
                     let v = solid.vol[s];
@@ -198,21 +199,20 @@ pub fn fluid_phase_terms(fs: &PairLists, solid: SolidPhase, fluid: FluidPhase, o
                     let wn = blk.w[p] * inv_n;
                     let g = [blk.gx[p], blk.gy[p], blk.gz[p]];
                     let dp = solid.pore_pressure[s] - solid.outer_pressure[s];
-                    let cd = -v * solid.conductivity[s] * (af + solid.phi[s]) * dp;
+                    let g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+                    rate -= v * v * solid.conductivity[s] * (af + solid.phi[s]) * dp * g2;
                     let us = [solid.u_beta.x[s], solid.u_beta.y[s], solid.u_beta.z[s]];
                     let qs = [solid.q.x[s], solid.q.y[s], solid.q.z[s]];
                     for c in 0..3 {
                         ub[c] += wn * us[c];
                         qf[c] += wn * qs[c];
                         gp[c] += v * dp * g[c];
-                        d[c] += cd * g[c];
                     }
                 }
                 (ubx[l], uby[l], ubz[l]) = (ub[0], ub[1], ub[2]);
                 (qx[l], qy[l], qz[l]) = (qf[0], qf[1], qf[2]);
                 (gx[l], gy[l], gz[l]) = (gp[0], gp[1], gp[2]);
-                let n = fluid.normal;
-                ga[l] = d[0] * n.x[f] + d[1] * n.y[f] + d[2] * n.z[f];
+                ga[l] = rate;
             }
         });
 }

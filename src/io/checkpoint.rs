@@ -493,11 +493,12 @@ pub fn inspect_checkpoint(path: &Path) -> Result<Inspection, IoError> {
     Ok(Inspection { text: s, checksums_hold: r.checks.iter().all(DatasetCheck::holds) })
 }
 
-/// Outer volume of each phase, m^3: sum over fluid particles of h^3 alpha_k
-/// (h = particle spacing; P §6.1, V_k = alpha_k h^3).
-pub fn phase_volumes(state: &SavedState) -> Vec<f64> {
+/// Outer and inner volume of each phase, m^3: sums over fluid particles of
+/// h^3 alpha_k and h^3 beta_k (h = particle spacing; P §6.1).
+pub fn phase_volumes(state: &SavedState) -> (Vec<f64>, Vec<f64>) {
     let h = f64::from(state.scene.simulation.particle_spacing);
-    state.fluid.alpha.iter().map(|a| h * h * h * a.iter().map(|&x| f64::from(x)).sum::<f64>()).collect()
+    let sum = |a: &Vec<f32>| h * h * h * a.iter().map(|&x| f64::from(x)).sum::<f64>();
+    (state.fluid.alpha.iter().map(sum).collect(), state.fluid.beta.iter().map(sum).collect())
 }
 
 fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck]) -> fmt::Result {
@@ -512,9 +513,10 @@ fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck
     writeln!(s, "dt:         {} s", st.dt)?;
     writeln!(s, "scene:      {}", st.scene.origin)?;
     writeln!(s, "particles:  {} fluid, {} wall, {} solid", st.fluid.len(), st.walls.len(), st.solids.len())?;
-    writeln!(s, "fluid volume per phase (outer; sum of h^3 alpha_k):")?;
-    for (p, v) in st.scene.phases.iter().zip(phase_volumes(st)) {
-        writeln!(s, "  {:<16} {v:.6e} m^3", p.name)?;
+    writeln!(s, "fluid volume per phase (outer, sum of h^3 alpha_k; inner, sum of h^3 beta_k):")?;
+    let (outer, inner) = phase_volumes(st);
+    for ((p, v), b) in st.scene.phases.iter().zip(outer).zip(inner) {
+        writeln!(s, "  {:<16} {v:.6e} m^3 outer, {b:.6e} m^3 inner", p.name)?;
     }
     let r = &c.run;
     write!(s, "run:        frames written {}, next frame at {} s, ", r.frames_written, r.next_frame_time)?;

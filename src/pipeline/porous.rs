@@ -10,7 +10,7 @@
 //!    gradients: phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
 //!    grad p^pore, q_k and u_betak on the solids (P-Eqs. 1, 19), and on the
 //!    fluid u_betak,f, q_k,f, grad p^pore_fk, Gamma_k and the surface
-//!    normals (P-Eqs. 16-18, 20-22).
+//!    capillary normal (P-Eqs. 16-18, 20-22).
 //! 3. [`accelerations`], after the pressure solve: a^cap and a^pore.
 //!
 //! The pore pressure uses the volumetric strain tr(eps) of the previous
@@ -24,7 +24,7 @@ use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self, Vel, VelMut};
 use porosph_kernels::porous::{
-    absorbed_volume, fluid_phase_terms, pore_gradient, release_outside, surface_normals, FluidPhase, FluidPhaseOut,
+    absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, FluidPhase, FluidPhaseOut,
     SolidPhase,
 };
 use rayon::prelude::*;
@@ -159,16 +159,9 @@ pub(super) fn pore_state<'a>(
     let per_solid: Vec<_> = (0..np).map(&mut solid_phase).collect();
 
     // Pass 9 on the fluid.
-    let (nx, ny, nz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
     let (cx, cy, cz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
     let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
-    surface_normals(
-        &w.fs,
-        vol,
-        psi,
-        VelMut { x: &mut *nx, y: &mut *ny, z: &mut *nz },
-        VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz },
-    );
+    capillary_normal(&w.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
     let [ubx, uby, ubz] = flat(arena);
     let [qfx, qfy, qfz] = flat(arena);
@@ -185,7 +178,7 @@ pub(super) fn pore_state<'a>(
             u_beta: u_s,
             q: q_s,
         };
-        let fl = FluidPhase { alpha: &fluid.alpha[k], inv_n, normal: Vel { x: nx, y: ny, z: nz } };
+        let fl = FluidPhase { alpha: &fluid.alpha[k], inv_n };
         let out = FluidPhaseOut {
             u_beta: VelMut { x: &mut ubx[r.clone()], y: &mut uby[r.clone()], z: &mut ubz[r.clone()] },
             q: VelMut { x: &mut qfx[r.clone()], y: &mut qfy[r.clone()], z: &mut qfz[r.clone()] },
