@@ -128,9 +128,15 @@ impl Params {
     }
 
     /// The diffusivity of the drift for the time step rule, the largest
-    /// sigma_k, m^2/s (PHYSICS.md §7).
+    /// sigma_k and, with porous solids, sigma' of P-Eq. 12, m^2/s
+    /// (PHYSICS.md §7).
     pub fn drift_diffusivity(&self) -> f32 {
-        self.phase_drift_sigma.iter().copied().fold(0.0, f32::max)
+        let outer = self.phase_drift_sigma.iter().copied().fold(0.0, f32::max);
+        if self.porous() {
+            outer.max(self.inner_drift_sigma)
+        } else {
+            outer
+        }
     }
 
     /// A bound on the drift speed before the first step, m/s: the

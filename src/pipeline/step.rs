@@ -95,11 +95,13 @@ impl Simulation {
         }
     }
 
-    /// The time step rule of PHYSICS.md §7 without porous terms:
+    /// The time step rule of PHYSICS.md §7:
     /// dt = min(max_dt, lambda h / max|u|, 0.125 h^2 rho_k / mu_k), and with
-    /// two or more phases also lambda h / max_k|u_mk| (`max_drift`, the
-    /// drift speed of the last step; PHYSICS.md writes 0.4 = lambda's
-    /// default) and 0.1 h^2 / max_k sigma_k.
+    /// two or more phases also lambda h / max_k|u_mk| and
+    /// 0.1 h^2 / max_k sigma_k; `max_drift` is the largest of the last
+    /// step's outer and inner drift speeds and Darcy speeds |u_rk| (the
+    /// step passes max(max_drift_speed, max_darcy_speed); PHYSICS.md writes
+    /// 0.4 = lambda's default).
     pub fn next_dt(&self, max_speed: f32, max_drift: f32) -> f32 {
         let p = &self.params;
         let mut dt = p.max_dt;
