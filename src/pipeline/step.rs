@@ -657,6 +657,13 @@ fn step_passes(
         });
     }
 
+    // Absorbed liquid does not pass through walls (porous::wall_guard).
+    if porous {
+        tm.time(pass::POROUS, || {
+            super::porous::wall_guard(p, fluid, walls, &w.fb, u_star, dt, [&mut *apx, &mut *apy, &mut *apz]);
+        });
+    }
+
     // Pass 13: symplectic Euler.
     tm.time(pass::INTEGRATE, || {
         let s = State {
