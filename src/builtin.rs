@@ -7,11 +7,18 @@ pub struct Builtin {
     pub text: &'static str,
 }
 
-/// The scene `porosph run` uses when none is given.
-pub const DEFAULT: &str = "dam_break";
+/// The scene `porosph run` uses when none is given: the paper's Example 1,
+/// small.
+pub const DEFAULT: &str = "wave_block";
 
 /// All built-in scenes.
 pub const SCENES: &[Builtin] = &[
+    Builtin {
+        name: "wave_block",
+        description: "the paper's Example 1, small: a dam-break wave hits a porous block and soaks it, \
+                      ~7.6k particles",
+        text: include_str!("../scenes/example1_wave_block.toml"),
+    },
     Builtin {
         name: "dam_break",
         description: "water column (a = 0.2 m, 2a high) collapsing in a tank, ~16k particles",

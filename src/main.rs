@@ -69,7 +69,8 @@ struct RunArgs {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a scene (a TOML file or a built-in name; default: the built-in dam break).
+    /// Run a scene (a TOML file or a built-in name; default: the built-in
+    /// wave_block, the paper's Example 1 small).
     Run {
         /// Scene file or built-in scene name (see `porosph scenes`).
         scene: Option<String>,
@@ -283,8 +284,9 @@ fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), St
         a.attach_backend(&mut sim)?;
         if !a.quiet {
             eprintln!(
-                "porosph: {origin}: {} fluid + {} wall particles, {} threads, output in {}",
+                "porosph: {origin}: {} fluid + {} solid + {} wall particles, {} threads, output in {}",
                 sim.fluid.len(),
+                sim.solids.len(),
                 sim.walls.len(),
                 rayon::current_num_threads(),
                 out.display()

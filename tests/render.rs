@@ -380,3 +380,132 @@ fn cli_camera_options() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+/// Blob centres of [`porous_frame`]: fluid outside the solids (alpha),
+/// absorbed fluid (beta), a dry and a wet porous solid, left to right.
+const OUTER_AT: [f32; 3] = [-0.9, 0.0, 0.0];
+const INNER_AT: [f32; 3] = [-0.3, 0.0, 0.0];
+const DRY_AT: [f32; 3] = [0.3, 0.0, 0.0];
+const WET_AT: [f32; 3] = [0.9, 0.0, 0.0];
+
+/// A frame as a run with porous solids writes it: two phases (blue, red),
+/// `alpha` and `beta` per fluid point, `saturation` per solid point, the
+/// frame's `color` (inner fluid at 0.45 of its phase colour, as
+/// `Simulation::frame` draws it), and a wall sheet behind.
+fn porous_frame() -> Frame {
+    let d = 0.03;
+    let (mut points, mut kinds, mut color) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut alpha, mut beta, mut sat) = (Vec::new(), Vec::new(), Vec::new());
+    // (centre, kind, alpha, beta, saturation, colour)
+    let shade = porosph::run::INNER_SHADE;
+    let blobs = [
+        (OUTER_AT, kind::FLUID, [1.0, 0.0], [0.0, 0.0], 0.0, BLUE),
+        (INNER_AT, kind::FLUID, [0.0, 0.0], [1.0, 0.0], 0.0, BLUE.map(|c| shade * c)),
+        (DRY_AT, kind::SOLID, [0.0; 2], [0.0; 2], 0.0, [0.8, 0.62, 0.38]),
+        (WET_AT, kind::SOLID, [0.0; 2], [0.0; 2], 0.5, [0.85, 0.33, 0.05]),
+    ];
+    for (c, k, a, b, s, col) in blobs {
+        for p in blob(c, d) {
+            points.push(p);
+            kinds.push(k);
+            alpha.extend(a);
+            beta.extend(b);
+            sat.push(s);
+            color.extend(col);
+        }
+    }
+    for i in 0..10 {
+        for j in 0..10 {
+            points.push([WALL_AT[0] + d * (i as f32 - 4.5), WALL_AT[1] + d * (j as f32 - 4.5), WALL_AT[2]]);
+            kinds.push(kind::WALL);
+            alpha.extend([0.0; 2]);
+            beta.extend([0.0; 2]);
+            sat.push(0.0);
+            color.extend([0.6, 0.6, 0.6]);
+        }
+    }
+    let n = points.len();
+    Frame {
+        time: 0.5,
+        step: 10,
+        points,
+        arrays: vec![
+            array("velocity", 3, ArrayData::F32(vec![0.0; 3 * n])),
+            array("pressure", 1, ArrayData::F32(vec![0.0; n])),
+            array("saturation", 1, ArrayData::F32(sat)),
+            array("alpha", 2, ArrayData::F32(alpha)),
+            array("beta", 2, ArrayData::F32(beta)),
+            array("color", 3, ArrayData::F32(color)),
+            array("kind", 1, ArrayData::U8(kinds)),
+            array("id", 1, ArrayData::U32((0..n as u32).collect())),
+        ],
+    }
+}
+
+/// The mean sRGB colour of the 11 x 11 pixels around where `p` lands (a
+/// few particles: the shading of single pixels varies over each sphere).
+fn mean_around(img: &porosph::render::Image, frame: &Frame, o: &RenderOptions, p: [f32; 3]) -> [f32; 3] {
+    let (x, y) = pixel_of(frame, o, p);
+    let mut sum = [0.0f32; 3];
+    for py in y - 5..=y + 5 {
+        for px in x - 5..=x + 5 {
+            let c = img.pixel(px, py);
+            (0..3).for_each(|i| sum[i] += f32::from(c[i]) / 121.0);
+        }
+    }
+    sum
+}
+
+fn brightness(c: [f32; 3]) -> f32 {
+    c.iter().sum()
+}
+
+#[test]
+fn saturation_mode_colours_solids_dry_to_wet_and_absorbed_fluid_darker() {
+    let f = porous_frame();
+    for ortho in [true, false] {
+        let o = RenderOptions { color: ColorMode::Saturation, orthographic: ortho, ..opts() };
+        let img = render(&f, &o).unwrap();
+        let outer = mean_around(&img, &f, &o, OUTER_AT);
+        let inner = mean_around(&img, &f, &o, INNER_AT);
+        let dry = mean_around(&img, &f, &o, DRY_AT);
+        let wet = mean_around(&img, &f, &o, WET_AT);
+        let ctx = format!("ortho {ortho}: outer {outer:?} inner {inner:?} dry {dry:?} wet {wet:?}");
+        // Fluid: its phase (blue) outside the solids and absorbed, the
+        // absorbed fluid much darker.
+        for c in [outer, inner] {
+            assert!(c[2] > 2.0 * c[0] && c[2] > c[1], "{ctx}");
+        }
+        assert!(outer[2] > 100.0, "{ctx}");
+        assert!(brightness(inner) < 0.65 * brightness(outer), "{ctx}");
+        // Solids: dry pale sand (all channels high, red > green > blue),
+        // wet (the top of the default range, 0 to the largest saturation)
+        // dark brown.
+        assert!(dry[0] > dry[1] && dry[1] > dry[2] && dry[2] > 0.6 * dry[0] && dry[0] > 120.0, "{ctx}");
+        assert!(wet[0] > 2.0 * wet[1] && wet[0] > 3.0 * wet[2], "{ctx}");
+        assert!(brightness(wet) < 0.6 * brightness(dry), "{ctx}");
+        // Not the phase mode's picture (the frame's `color`).
+        assert_ne!(img, render(&f, &RenderOptions { color: ColorMode::Phase, ..o.clone() }).unwrap());
+    }
+    // A range of 0 to 1: saturation 0.5 is half way, orange.
+    let o = RenderOptions { color: ColorMode::Saturation, orthographic: true, range: Some([0.0, 1.0]), ..opts() };
+    let img = render(&f, &o).unwrap();
+    let half = mean_around(&img, &f, &o, WET_AT);
+    assert!(half[0] > half[1] && half[1] > 1.5 * half[2] && half[1] > 0.4 * half[0], "half wet {half:?}");
+    assert_eq!(porosph::render::value_range(&f, ColorMode::Saturation).unwrap(), Some([0.0, 0.5]));
+    // Walls, when shown, are faint.
+    let ow = RenderOptions { walls: true, ..o.clone() };
+    let wall = [WALL_AT[0] + 0.015, WALL_AT[1] + 0.015, WALL_AT[2]];
+    let (wx, wy) = pixel_of(&f, &ow, wall);
+    let shown = render(&f, &ow).unwrap().pixel(wx, wy);
+    let bg = background(&RenderOptions { color: ColorMode::Phase, ..ow.clone() });
+    assert_ne!(shown, bg);
+    assert!(shown.iter().zip(bg).all(|(&a, b)| a.abs_diff(b) < 90), "{shown:?} vs {bg:?}");
+    // Deterministic on any number of threads.
+    let a = common::with_threads(1, || render(&f, &o).unwrap());
+    let b = common::with_threads(2, || render(&f, &o).unwrap());
+    assert_eq!(a, b);
+    // A frame without saturations (no porous solids written) is an error.
+    let e = render(&known_frame(), &RenderOptions { color: ColorMode::Saturation, ..opts() }).unwrap_err();
+    assert!(e.0.contains("saturation"), "{e}");
+}

@@ -34,16 +34,23 @@ pub enum ColorMode {
     /// (default: the smallest to the largest pressure of the fluid and
     /// solid points).
     Pressure,
+    /// Porous solids by their `saturation` (sum_k phi_sk) from dry to wet
+    /// through [`wetness`], over [`RenderOptions::range`] (default: 0 to
+    /// the largest saturation of the solid points); fluid by its phase
+    /// mixture at full brightness where it is outside the solids (alpha)
+    /// and darker where it is absorbed (beta, [`INNER_DARKEN`]).
+    Saturation,
 }
 
 impl ColorMode {
     /// Every mode: its command-line name and what it shows (for parsing,
     /// error messages and `--help`). A new mode is one more entry here and
     /// one more arm in the renderer's `scalars`.
-    pub const ALL: [(ColorMode, &'static str, &'static str); 3] = [
+    pub const ALL: [(ColorMode, &'static str, &'static str); 4] = [
         (ColorMode::Phase, "phase", "the phase mixture"),
         (ColorMode::Speed, "speed", "|velocity|, colormap"),
         (ColorMode::Pressure, "pressure", "colormap"),
+        (ColorMode::Saturation, "saturation", "solids dry to wet, fluid by phase, absorbed fluid darker"),
     ];
 }
 
@@ -473,6 +480,14 @@ fn scalars(frame: &Frame, mode: ColorMode) -> Result<Option<Vec<f32>>, RenderErr
                 .ok_or_else(|| RenderError("no point array \"pressure\" to colour by pressure".into()))?;
             Ok(Some(p.to_vec()))
         }
+        ColorMode::Saturation => {
+            let s = f32_array(frame, "saturation", 1)?.ok_or_else(|| {
+                RenderError(
+                    "no point array \"saturation\" to colour by saturation (a frame without porous solids?)".into(),
+                )
+            })?;
+            Ok(Some(s.to_vec()))
+        }
     }
 }
 
@@ -481,13 +496,18 @@ fn scalars(frame: &Frame, mode: ColorMode) -> Result<Option<Vec<f32>>, RenderErr
 /// points (`None` for `Phase` or without finite values).
 pub fn value_range(frame: &Frame, mode: ColorMode) -> Result<Option<[f32; 2]>, RenderError> {
     let Some(s) = scalars(frame, mode)? else { return Ok(None) };
-    let idx = framed_points(frame)?;
+    let mut idx = framed_points(frame)?;
+    if mode == ColorMode::Saturation {
+        // Only the solids carry a saturation; 0 to the wettest.
+        let k = kinds(frame)?;
+        idx.retain(|&i| k.is_some_and(|k| k[i] == kind::SOLID));
+    }
     let vals = idx.iter().map(|&i| s[i]).filter(|v| v.is_finite());
     let r = vals.fold(None, |acc: Option<[f32; 2]>, v| match acc {
         None => Some([v, v]),
         Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
     });
-    Ok(r.map(|[lo, hi]| if mode == ColorMode::Speed { [0.0, hi] } else { [lo, hi] }))
+    Ok(r.map(|[lo, hi]| if matches!(mode, ColorMode::Speed | ColorMode::Saturation) { [0.0, hi] } else { [lo, hi] }))
 }
 
 /// Viridis, 9 control points (sRGB).
@@ -525,6 +545,39 @@ pub fn colormap(t: f32) -> [f32; 3] {
     let f = x - i as f32;
     let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
     [0, 1, 2].map(|c| srgb_to_linear(a[c] + f * (b[c] - a[c])))
+}
+
+/// The dry-to-wet ramp of `--color saturation`, 3 control points (sRGB):
+/// pale sand, orange, dark brown.
+const WETNESS: [[f32; 3]; 3] = [[0.93, 0.87, 0.72], [0.95, 0.55, 0.12], [0.42, 0.12, 0.04]];
+
+/// The dry-to-wet ramp at `t` in 0..1 (0 dry, 1 the top of the range),
+/// linear RGB.
+pub fn wetness(t: f32) -> [f32; 3] {
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let x = t * (WETNESS.len() - 1) as f32;
+    let i = (x as usize).min(WETNESS.len() - 2);
+    let f = x - i as f32;
+    let (a, b) = (WETNESS[i], WETNESS[i + 1]);
+    [0, 1, 2].map(|c| srgb_to_linear(a[c] + f * (b[c] - a[c])))
+}
+
+/// `--color saturation`: absorbed (inner) fluid is drawn in its phase
+/// mixture times this, outer fluid at full brightness.
+pub const INNER_DARKEN: f32 = 0.25;
+
+/// For `--color saturation`, from a fluid point's outer and inner
+/// fractions: the weight its `color` carries (sum_k (alpha_k + s beta_k) c_k
+/// in a frame, s = [`crate::run::INNER_SHADE`], so `color / weight` is the
+/// phase mixture at full brightness) and its inner share sum beta /
+/// sum (alpha + beta); `None` without fractions.
+fn fluid_weights(alpha: &[f32], beta: &[f32]) -> Option<(f32, f32)> {
+    let (a, b) = (alpha.iter().sum::<f32>(), beta.iter().sum::<f32>());
+    let weight = a + crate::run::INNER_SHADE * b;
+    if !(weight > 1e-6 && a + b > 1e-6) {
+        return None;
+    }
+    Some((weight, (b / (a + b)).clamp(0.0, 1.0)))
 }
 
 /// Colour of fluid and solid points when the frame has no `color` array.
@@ -572,7 +625,22 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
     }
     let k = kinds(frame)?;
     let colors = match opts.color {
-        ColorMode::Phase => f32_array(frame, "color", 3)?,
+        ColorMode::Phase | ColorMode::Saturation => f32_array(frame, "color", 3)?,
+        _ => None,
+    };
+    // Saturation mode: the fluid's outer and inner fractions (K each).
+    let fractions = match opts.color {
+        ColorMode::Saturation => {
+            let components = |name: &str| frame.arrays.iter().find(|a| a.name == name).map(|a| a.components);
+            match (components("alpha"), components("beta")) {
+                (Some(ka), Some(kb)) if ka == kb && ka > 0 => {
+                    let a = f32_array(frame, "alpha", ka)?;
+                    let b = f32_array(frame, "beta", kb)?;
+                    a.zip(b).map(|(a, b)| (a, b, ka))
+                }
+                _ => None,
+            }
+        }
         _ => None,
     };
     let values = scalars(frame, opts.color)?;
@@ -616,13 +684,25 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
             if !(r.is_finite() && x + r >= 0.0 && y + r >= 0.0 && x - r <= w as f32 && y - r <= h as f32) {
                 return hidden;
             }
+            let solid = k.is_some_and(|k| k[i] == kind::SOLID);
             let color = if wall {
                 WALL_COLOR
+            } else if opts.color == ColorMode::Saturation {
+                if solid {
+                    wetness((values.as_ref().map_or(0.0, |v| v[i]) - range[0]) / span)
+                } else {
+                    let w = fractions
+                        .and_then(|(a, b, nk)| fluid_weights(&a[nk * i..nk * (i + 1)], &b[nk * i..nk * (i + 1)]));
+                    let (weight, inner) = w.unwrap_or((1.0, 0.0));
+                    let mix =
+                        colors.map_or(DEFAULT_FLUID, |c| [c[3 * i], c[3 * i + 1], c[3 * i + 2]].map(|x| x / weight));
+                    mix.map(|x| x * (1.0 - (1.0 - INNER_DARKEN) * inner))
+                }
             } else if let Some(v) = &values {
                 colormap((v[i] - range[0]) / span)
             } else if let Some(c) = colors {
                 [c[3 * i], c[3 * i + 1], c[3 * i + 2]]
-            } else if k.is_some_and(|k| k[i] == kind::SOLID) {
+            } else if solid {
                 DEFAULT_SOLID
             } else {
                 DEFAULT_FLUID

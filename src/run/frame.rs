@@ -16,8 +16,9 @@ const SOLID_COLOR: [f32; 3] = [0.80, 0.62, 0.38];
 /// colour goes from [`SOLID_COLOR`] to this with its saturation.
 const WET_COLOR: [f32; 3] = [0.85, 0.33, 0.05];
 /// Inner (absorbed) fluid is drawn in its phase colour times this, so outer
-/// and inner phases can be told apart.
-const INNER_SHADE: f32 = 0.45;
+/// and inner phases can be told apart (the frame's `color`; `porosph render
+/// --color saturation` divides it out again).
+pub const INNER_SHADE: f32 = 0.45;
 
 fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArray {
     PointArray { name: name.to_string(), unit: unit.to_string(), components, data }

@@ -7,7 +7,7 @@ mod checkpoints;
 mod frame;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
-pub use frame::kind;
+pub use frame::{kind, INNER_SHADE};
 
 use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;

@@ -1,0 +1,119 @@
+//! The scenes in `scenes/` and the built-in scenes: every one parses and
+//! sets up a simulation; the paper's examples are reduced (a few thousand
+//! to ~20k particles) and use what they show (porous solids, phases,
+//! bodies of regions); the default scene (the paper's Example 1, small) runs
+//! 0.2 s of simulated time without a step error. Whole runs of the examples
+//! are documented, with wall times, in scenes/README.md.
+
+mod common;
+
+use porosph::builtin;
+use porosph::pipeline::Simulation;
+use porosph::scene::Scene;
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+fn scenes_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// Every `scenes/*.toml`, in name order.
+fn scene_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
+        .expect("list scenes/")
+        .map(|e| e.expect("scenes/ entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    files
+}
+
+/// The paper's examples: `scenes/exampleN_*.toml`, N = 1..6.
+fn examples() -> Vec<(u32, PathBuf)> {
+    let mut out = Vec::new();
+    for p in scene_files() {
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        if let Some(rest) = name.strip_prefix("example") {
+            let n: u32 = rest.split('_').next().unwrap().parse().expect("exampleN_name.toml");
+            out.push((n, p));
+        }
+    }
+    out
+}
+
+#[test]
+fn every_scene_file_parses_and_sets_up() {
+    let files = scene_files();
+    assert!(files.len() >= 6, "{files:?}");
+    for p in files {
+        let scene = Scene::from_file(&p).unwrap_or_else(|e| panic!("{e}"));
+        let sim = Simulation::new(scene);
+        assert!(sim.fluid.len() + sim.solids.len() > 0, "{}: no particles", p.display());
+    }
+}
+
+#[test]
+fn the_papers_examples_are_there_reduced_and_use_what_they_show() {
+    let ex = examples();
+    let numbers: BTreeSet<u32> = ex.iter().map(|e| e.0).collect();
+    assert_eq!(numbers, (1..=6).collect(), "{ex:?}");
+    for (n, p) in ex {
+        let scene = Scene::from_file(&p).unwrap_or_else(|e| panic!("{e}"));
+        let text = std::fs::read_to_string(&p).unwrap();
+        // The header notes the paper's particle counts (P Table 3).
+        assert!(text.starts_with(&format!("# Example {n} of the paper")), "{}", p.display());
+        assert!(text.contains("P Table 3"), "{}: the paper's particle counts", p.display());
+        let porous = scene.solids.iter().filter(|s| s.porous.is_some()).count();
+        assert!(porous > 0, "{}: no porous solid", p.display());
+        let phases = scene.phases.len();
+        let want_phases = match n {
+            1 | 3 => 1,
+            2 | 4 => 2,
+            _ => 3,
+        };
+        assert_eq!(phases, want_phases, "{}: phases (P Table 3)", p.display());
+        let bodies: BTreeSet<&str> = scene.solids.iter().map(|s| s.body.as_str()).collect();
+        if matches!(n, 3 | 6) {
+            // One body of regions.
+            assert_eq!(bodies.len(), 1, "{}: {bodies:?}", p.display());
+            assert!(scene.solids.len() >= 3, "{}: regions", p.display());
+        }
+        if n == 3 {
+            assert!(scene.solids.iter().any(|s| s.porous.as_ref().is_some_and(|q| q.gains_mass)));
+        }
+        let sim = Simulation::new(scene);
+        let total = sim.fluid.len() + sim.solids.len();
+        assert!((2_000..=25_000).contains(&total), "{}: {total} fluid and solid particles", p.display());
+    }
+}
+
+#[test]
+fn builtin_scenes_parse_and_the_default_is_the_small_example_1() {
+    for b in builtin::SCENES {
+        Scene::from_toml_str(b.text, b.name).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let d = builtin::find(builtin::DEFAULT).expect("the default is a built-in scene");
+    assert_eq!(d.name, "wave_block");
+    assert!(d.text.starts_with("# Example 1 of the paper"));
+    assert!(builtin::find("dam_break").is_some(), "the dam break stays available");
+    assert!(builtin::find("hydrostatic").is_some());
+}
+
+#[test]
+fn default_scene_runs_for_a_fifth_of_a_second() {
+    let d = builtin::find(builtin::DEFAULT).unwrap();
+    let scene = Scene::from_toml_str(d.text, d.name).unwrap();
+    let mut sim = Simulation::new(scene);
+    let (nf, ns) = (sim.fluid.len(), sim.solids.len());
+    assert!(nf > 1000 && ns > 1000, "{nf} fluid, {ns} solid particles");
+    // By 0.2 s the wave has reached the block and it has begun to absorb.
+    common::run_until(&mut sim, 0.2);
+    let inner: f64 = sim.fluid.beta.iter().flat_map(|b| b.iter()).map(|&b| f64::from(b)).sum();
+    assert!(inner > 0.0, "nothing absorbed by 0.2 s");
+    let wet = sim.solids.saturation.iter().filter(|&&s| s > 0.01).count();
+    assert!(wet > 0, "no wet solid particle by 0.2 s");
+    let max_speed = (0..nf)
+        .map(|i| (sim.fluid.ux[i].powi(2) + sim.fluid.uy[i].powi(2) + sim.fluid.uz[i].powi(2)).sqrt())
+        .fold(0.0f32, f32::max);
+    assert!(max_speed < 10.0, "max fluid speed {max_speed} m/s");
+}
