@@ -16,7 +16,7 @@ use porosph_kernels::blocks::{max_f32, nblocks, sum_f64, BLOCK};
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, SolidPairs, Vel, VelMut, WallRows, MIN_ALPHA_F};
+use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, SolidPairs, Vel, VelMut, WallRows};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phase_transport;
@@ -298,7 +298,9 @@ fn step_passes(
                     mu[q] = v;
                     af[q] = a;
                     m[q] = r * cell;
-                    v0[q] = if a >= MIN_ALPHA_F { a * cell } else { 0.0 };
+                    // The outer volume fades out of the solve with the
+                    // row weight (iisph::row_weight): 0 below alpha_f = 0.5.
+                    v0[q] = iisph::row_weight(a) * a * cell;
                 }
             });
     });
