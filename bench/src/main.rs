@@ -273,16 +273,17 @@ fn print_soak(what: &str, s: &Soak) {
     );
 }
 
-/// CPU time of the whole machine that is not idle, and of this process, in
-/// clock ticks (from /proc): to tell steps disturbed by other processes.
-fn cpu_snapshot() -> Option<(u64, u64)> {
+/// CPU time of the whole machine that is not idle, of this process, and of
+/// niced processes, in clock ticks (from /proc): to tell steps disturbed by
+/// other processes.
+fn cpu_snapshot() -> Option<(u64, u64, u64)> {
     let stat = std::fs::read_to_string("/proc/stat").ok()?;
     let v: Vec<u64> = stat.lines().next()?.split_whitespace().skip(1).filter_map(|x| x.parse().ok()).collect();
     // busy = all - nice - idle - iowait (niced background jobs do not count)
     let busy = v.iter().sum::<u64>() - v.get(1)? - v.get(3)? - v.get(4)?;
     let own = std::fs::read_to_string("/proc/self/stat").ok()?;
     let w: Vec<&str> = own.rsplit_once(')')?.1.split_whitespace().collect();
-    Some((busy, w.get(11)?.parse::<u64>().ok()? + w.get(12)?.parse::<u64>().ok()?))
+    Some((busy, w.get(11)?.parse::<u64>().ok()? + w.get(12)?.parse::<u64>().ok()?, *v.get(1)?))
 }
 
 fn main() {
@@ -339,7 +340,7 @@ fn bench(a: &Args) {
     let tick = 100.0; // USER_HZ on Linux
     let cpus = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) as f64;
     let mut soak_start = None;
-    let mut foreign_sum = 0.0f64;
+    let (mut foreign_sum, mut niced_sum) = (0.0f64, 0.0f64);
     for s in 0..a.steps {
         if a.porous && s == a.warmup {
             soak_start = Some(soak(&sim));
@@ -348,9 +349,12 @@ fn bench(a: &Args) {
         let t = Instant::now();
         let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
         let el = t.elapsed().as_secs_f64();
-        if let (Some((b0, o0)), Some((b1, o1))) = (c0, cpu_snapshot()) {
+        if let (Some((b0, o0, n0)), Some((b1, o1, n1))) = (c0, cpu_snapshot()) {
             // Share of the machine used by other processes during this step.
             let foreign = ((b1 - b0) as f64 - (o1 - o0) as f64) / tick / (el * cpus);
+            if s >= a.warmup {
+                niced_sum += (n1 - n0) as f64 / tick / (el * cpus);
+            }
             if s >= a.warmup && foreign < 0.05 {
                 clean_s.push(el);
             }
@@ -400,9 +404,11 @@ fn bench(a: &Args) {
         None => println!("median of clean steps: none (other processes loaded the machine in every step)"),
     }
     println!(
-        "foreign CPU load     {:.2} of {} cores on average in the measured steps (other processes)",
+        "foreign CPU load     {:.2} of {} cores on average in the measured steps (other processes; \
+         niced ones, not counted against clean steps: {:.2} more)",
         foreign_sum / m * cpus,
-        cpus
+        cpus,
+        niced_sum / m * cpus
     );
     println!("particle-steps/s     {:.3} M  (median step: {:.3} M)", pps / 1e6, n as f64 / median / 1e6);
     if a.porous {
