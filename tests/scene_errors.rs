@@ -533,11 +533,22 @@ impl Lcg {
 
 #[test]
 fn random_mutations_never_panic() {
+    random_mutations(FULL, 0x5eed_f00d);
+}
+
+#[test]
+fn random_mutations_of_a_porous_solid_never_panic() {
+    random_mutations(&format!("{MINIMAL}{POROUS_SOLID}"), 0x9e37_79b9);
+}
+
+/// 2000 one-byte mutations of the valid scene `base`: none makes the parser
+/// panic, each rejection has a reason, and some are accepted.
+fn random_mutations(base: &str, seed: u64) {
     // Bytes that are likely to make interesting TOML: structure, digits, signs,
     // exponents, quotes, newlines, and a non-ASCII byte.
     const ALPHABET: &[u8] = b"[]{}=,.\"'#\n -+0123456789eE_abinfxz \t\\\xc3";
-    let base = FULL.as_bytes();
-    let mut rng = Lcg(0x5eed_f00d);
+    let base = base.as_bytes();
+    let mut rng = Lcg(seed);
     let mut accepted = 0;
     for round in 0..2000 {
         let mut bytes = base.to_vec();
@@ -566,4 +577,130 @@ fn random_mutations_never_panic() {
     }
     // Mutations inside comments, whitespace and digits often keep the scene valid.
     assert!(accepted > 0 && accepted < 2000, "accepted {accepted} of 2000");
+}
+
+/// `MINIMAL` plus a porous solid (issue 5): the base of the `[solid.porous]`
+/// cases below, which edit `POROUS_SOLID`.
+const POROUS_SOLID: &str = r#"
+[[solid]]
+name = "sponge"
+box = { min = [0.3, 0.0, 0.0], max = [0.4, 0.1, 0.1] }
+density = 600.0
+shear_modulus = 2e4
+lame_lambda = 1e4
+body = "sponge"
+
+[solid.porous]
+porosity = 0.6
+rest_pore_pressure = 5e4
+biot_modulus = 4.9e4
+swelling = 7.5e-4
+capillarity = 2.0
+absorption = 1.0
+gains_mass = false
+
+[solid.porous.phase.water]
+permeability = 1e-7
+outer_pore_pressure = 2.5e4
+"#;
+
+/// `MINIMAL` with `POROUS_SOLID` appended, `from` replaced by `to` in it
+/// (`from` must occur in `POROUS_SOLID`).
+fn porous_edited(from: &str, to: &str) -> String {
+    assert!(POROUS_SOLID.contains(from), "test bug: `{from}` not in POROUS_SOLID");
+    format!("{MINIMAL}{}", POROUS_SOLID.replacen(from, to, 1))
+}
+
+#[test]
+fn porous_solid_parses_with_its_values() {
+    let scene = parse(&porous_edited("", "")).expect("valid scene");
+    let solid = &scene.solids[0];
+    assert_eq!(solid.body, "sponge");
+    let p = solid.porous.as_ref().expect("porous");
+    assert_eq!((p.porosity, p.rest_pore_pressure, p.biot_modulus), (0.6, 5e4, 4.9e4));
+    assert_eq!((p.swelling, p.capillarity, p.absorption, p.gains_mass), (7.5e-4, 2.0, 1.0, false));
+    let w = p.phases[0].expect("water is absorbed");
+    assert_eq!((w.permeability, w.outer_pore_pressure), (1e-7, 2.5e4));
+    // outer_pore_pressure = porosity x rest_pore_pressure is the limit and allowed.
+    let text = porous_edited("outer_pore_pressure = 2.5e4", "outer_pore_pressure = 3e4")
+        .replacen("porosity = 0.6", "porosity = 0.5", 1)
+        .replacen("rest_pore_pressure = 5e4", "rest_pore_pressure = 6e4", 1);
+    assert!(parse(&text).is_ok(), "{:?}", parse(&text).err());
+    // A solid without body gets its own name as its body.
+    let scene = parse(&porous_edited("body = \"sponge\"\n", "")).expect("valid scene");
+    assert_eq!(scene.solids[0].body, "sponge");
+}
+
+#[test]
+fn unknown_key_in_solid_porous_suggests_the_right_one() {
+    let text = porous_edited("porosity = 0.6", "porosity = 0.6\npermeablity = 1e-7");
+    assert_rejected(&text, "solid[0].porous.permeablity", "unknown key `permeablity`");
+    let text = porous_edited("capillarity = 2.0", "capilarity = 2.0");
+    assert_rejected(&text, "solid[0].porous.capilarity", "(did you mean `capillarity`?)");
+    assert_rejected(&text, "solid[0].porous.capilarity", "allowed here: porosity, rest_pore_pressure");
+    let text = porous_edited("outer_pore_pressure = 2.5e4", "outer_pore_presure = 2.5e4");
+    assert_rejected(
+        &text,
+        "solid[0].porous.phase.water.outer_pore_presure",
+        "unknown key `outer_pore_presure` (did you mean `outer_pore_pressure`?)",
+    );
+}
+
+#[test]
+fn porosity_out_of_range() {
+    let text = porous_edited("porosity = 0.6", "porosity = 0.0");
+    assert_rejected(&text, "solid[0].porous.porosity", "the porosity e (0 < e <= 1) > 0, found 0");
+    let text = porous_edited("porosity = 0.6", "porosity = 1.5");
+    assert_rejected(&text, "solid[0].porous.porosity", "expected the porosity e (0 < e <= 1), found 1.5");
+    let text = porous_edited("porosity = 0.6", "porosity = -0.2");
+    assert_rejected(&text, "solid[0].porous.porosity", "found -0.2");
+    let text = porous_edited("porosity = 0.6", "porosity = \"0.6\"");
+    assert_rejected(&text, "solid[0].porous.porosity", "found the string \"0.6\"");
+}
+
+#[test]
+fn negative_permeability() {
+    let text = porous_edited("permeability = 1e-7", "permeability = -1e-7");
+    assert_rejected(&text, "solid[0].porous.phase.water.permeability", "the permeability k_w in m^2 >= 0, found -");
+}
+
+#[test]
+fn unknown_phase_under_solid_porous_phase() {
+    let text = porous_edited("[solid.porous.phase.water]", "[solid.porous.phase.watr]");
+    assert_rejected(&text, "solid[0].porous.phase.watr", "unknown phase `watr`; the phases are: water");
+}
+
+#[test]
+fn outer_pore_pressure_above_porosity_times_rest_pore_pressure() {
+    let text = porous_edited("outer_pore_pressure = 2.5e4", "outer_pore_pressure = 3.5e4");
+    assert_rejected(
+        &text,
+        "solid[0].porous.phase.water.outer_pore_pressure",
+        "expected outer_pore_pressure <= porosity x rest_pore_pressure = 30000",
+    );
+    assert_rejected(&text, "solid[0].porous.phase.water.outer_pore_pressure", "found 35000 Pa");
+}
+
+#[test]
+fn body_that_is_not_a_string() {
+    let text = porous_edited("body = \"sponge\"", "body = 3");
+    assert_rejected(
+        &text,
+        "solid[0].body",
+        "expected the name of the body this solid belongs to (a non-empty string), found the integer 3",
+    );
+    let text = porous_edited("body = \"sponge\"", "body = \"\"");
+    assert_rejected(&text, "solid[0].body", "(a non-empty string), found the string \"\"");
+}
+
+#[test]
+fn missing_rest_pore_pressure() {
+    let text = porous_edited("rest_pore_pressure = 5e4\n", "");
+    assert_rejected(
+        &text,
+        "solid[0].porous.rest_pore_pressure",
+        "missing required key `rest_pore_pressure` (expected the rest pore pressure p0 in Pa)",
+    );
+    let text = porous_edited("permeability = 1e-7\n", "");
+    assert_rejected(&text, "solid[0].porous.phase.water.permeability", "missing required key `permeability`");
 }
