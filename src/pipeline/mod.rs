@@ -15,7 +15,7 @@ pub use solid::{Peer2018, SolidModel, SolidStats};
 pub use step::StepError;
 pub use timing::{PassTimes, PASSES};
 
-use crate::scene::Scene;
+use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::cubic_spline::CubicSpline;
@@ -70,36 +70,15 @@ pub struct Params {
     pub solid_group: Vec<u32>,
     /// Rest mass m_s0 = rho_s d^3 of a particle of each solid entry, kg.
     pub solid_rest_mass: Vec<f32>,
-    /// Porous parameters of each solid entry (`None`: not porous).
-    pub porous: Vec<Option<PorousRegion>>,
+    /// Porous parameters of each solid entry, as the scene gives them
+    /// (`None`: not porous).
+    pub porous: Vec<Option<Porous>>,
     /// Pore drift weight phi of P-Eq. 11, m^2/(Pa s).
     pub pore_drift: f32,
     /// Inner drift weight tau' of P-Eq. 12.
     pub inner_drift_tau: f32,
     /// Inner diffusion weight sigma' of P-Eq. 12, m^2/s.
     pub inner_drift_sigma: f32,
-}
-
-/// Porous parameters of one solid region (P §4, PHYSICS.md §4.2), SI units.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PorousRegion {
-    /// Porosity e.
-    pub porosity: f32,
-    /// p_0 of P-Eq. 9, Pa.
-    pub rest_pore_pressure: f32,
-    /// B of P-Eq. 9, Pa.
-    pub biot_modulus: f32,
-    /// eta of P-Eq. 5.
-    pub swelling: f32,
-    /// psi of P-Eq. 14, m^2/s^2.
-    pub capillarity: f32,
-    /// K of P-Eq. 13.
-    pub absorption: f32,
-    pub gains_mass: bool,
-    /// k_wk per phase, m^2 (0: not absorbed).
-    pub permeability: Vec<f32>,
-    /// p_0k per phase, Pa (0 for a phase that is not absorbed).
-    pub outer_pore_pressure: Vec<f32>,
 }
 
 /// What one step did.

@@ -146,17 +146,21 @@ pub(super) fn pore_state<'a>(
             let i = perm[s] as usize;
             let Some(r) = region(s) else { continue };
             let mu = p.phase_viscosity[k];
-            let kw = if mu > 0.0 { r.permeability[k] / mu } else { 0.0 };
+            let phase = r.phases[k];
+            let kw = match phase {
+                Some(ph) if mu > 0.0 => ph.permeability / mu,
+                _ => 0.0,
+            };
             (qx[s], qy[s], qz[s]) = (-kw * gx[s], -kw * gy[s], -kw * gz[s]);
             let e = r.porosity;
             (ux[s], uy[s], uz[s]) = (qx[s] / e + solids.vx[i], qy[s] / e + solids.vy[i], qz[s] / e + solids.vz[i]);
             max_darcy = max_darcy.max((qx[s] * qx[s] + qy[s] * qy[s] + qz[s] * qz[s]).sqrt() / e);
-            p0k[s] = r.outer_pore_pressure[k];
+            p0k[s] = phase.map_or(0.0, |ph| ph.outer_pore_pressure);
             cond[s] = r.absorption * kw;
         }
         (Vel { x: qx, y: qy, z: qz }, Vel { x: ux, y: uy, z: uz }, &*p0k, &*cond)
     };
-    let per_solid: Vec<_> = (0..np).map(&mut solid_phase).collect();
+    let per_solid = arena.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
 
     // Pass 9 on the fluid.
     let (cx, cy, cz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
@@ -167,7 +171,7 @@ pub(super) fn pore_state<'a>(
     let [qfx, qfy, qfz] = flat(arena);
     let [gpx, gpy, gpz] = flat(arena);
     let gamma = zeros(arena, np * n);
-    for (k, (q_s, u_s, p0k, cond)) in per_solid.into_iter().enumerate() {
+    for (k, &(q_s, u_s, p0k, cond)) in per_solid.iter().enumerate() {
         let r = k * n..(k + 1) * n;
         let solid = SolidPhase {
             vol,

@@ -2,7 +2,7 @@
 //! structures, and the initial time step.
 
 use super::solid::{Peer2018, SolidModel};
-use super::{Params, PorousRegion, Simulation, StepStats, Workspace};
+use super::{Params, Simulation, StepStats, Workspace};
 use crate::scene::{sample_fluid, sample_solids, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -55,27 +55,7 @@ impl Params {
                     .collect()
             },
             solid_rest_mass: scene.solids.iter().map(|b| b.density * h * h * h).collect(),
-            porous: scene
-                .solids
-                .iter()
-                .map(|b| {
-                    b.porous.as_ref().map(|p| PorousRegion {
-                        porosity: p.porosity,
-                        rest_pore_pressure: p.rest_pore_pressure,
-                        biot_modulus: p.biot_modulus,
-                        swelling: p.swelling,
-                        capillarity: p.capillarity,
-                        absorption: p.absorption,
-                        gains_mass: p.gains_mass,
-                        permeability: p.phases.iter().map(|k| k.map_or(0.0, |k| k.permeability)).collect(),
-                        outer_pore_pressure: p
-                            .phases
-                            .iter()
-                            .map(|k| k.map_or(0.0, |k| k.outer_pore_pressure))
-                            .collect(),
-                    })
-                })
-                .collect(),
+            porous: scene.solids.iter().map(|b| b.porous.clone()).collect(),
             pore_drift: s.pore_drift,
             inner_drift_tau: s.inner_drift_tau,
             inner_drift_sigma: s.inner_drift_sigma,

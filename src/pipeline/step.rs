@@ -693,8 +693,13 @@ fn step_passes(
     // that sum_k (alpha_k + beta_k) = 1, keeping the alpha/beta split.
     if porous {
         tm.time(pass::PHASE_CORRECTION, || {
-            let chunks: Vec<&[f32]> = alpha_next.chunks(n).chain(beta_next.chunks(n)).collect();
-            let next = arena.alloc_slice_copy(&chunks);
+            let next = arena.alloc_slice_fill_iter((0..2 * np).map(|k| {
+                if k < np {
+                    &alpha_next[k * n..(k + 1) * n]
+                } else {
+                    &beta_next[(k - np) * n..(k - np + 1) * n]
+                }
+            }));
             let total = zeros(arena, n);
             let largest = arena.alloc_slice_fill_copy(n, 0u32);
             phase_transport::correction_sums(next, total, largest);
