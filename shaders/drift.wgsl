@@ -15,6 +15,13 @@
 // as the CPU.
 //
 // Per-phase arrays are stored phase-major: element (k, i) at k * n + i.
+//
+// With porous solids (PHYSICS.md §4.2) the host runs the three kernels
+// twice per step: for the outer fractions alpha with P-Eq. 11's porous term
+// (extra = grad p^pore_fk, extra_scale = -phi), then for the inner fractions
+// beta (P-Eq. 12: alpha <- beta, alpha_f <- beta_f, sigma_k <- sigma',
+// no phase pressure, extra = q_k,f, extra_scale = -tau', and every volume
+// h^3: the CPU's inner pairs hold h^3 grad W_ij).
 
 struct DriftParams {
     n: u32,
@@ -28,6 +35,13 @@ struct DriftParams {
     inv_support: f32,
     kernel_k: f32,
     kernel_l: f32,
+    // 1: add extra_scale e_k to v_k and alpha_k extra_scale e_k to w_k
+    // (kernels/src/porous.rs add_phase_term); 0: no extra term.
+    extra_term: u32,
+    extra_scale: f32,
+    // > 0: every particle's volume (the inner pass's h^3), m^3; 0: pos.w.
+    uniform_volume: f32,
+    pad: u32,
     // Per phase (rho_k, tau_k, sigma_k, 0).
     phase: array<vec4<f32>, 8>,
 }
@@ -60,6 +74,9 @@ const MIN_PHASE_FRACTION: f32 = 0.01;
 // s = sum_k c_k v_k and m = sum_k alphahat_k v_k (xyz), m/s.
 @group(0) @binding(10) var<storage, read_write> s: array<vec4<f32>>;
 @group(0) @binding(11) var<storage, read_write> m: array<vec4<f32>>;
+// e_k (xyz) per phase and particle: grad p^pore_fk (Pa/m) or q_k,f (m/s);
+// only read with extra_term.
+@group(0) @binding(12) var<storage, read> extra: array<vec4<f32>>;
 
 // W'(r)/r of the cubic spline, 1/m^5 (as in shaders/iisph.wgsl).
 fn grad_over_r(r: f32) -> f32 {
@@ -111,6 +128,8 @@ fn phase_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
         return;
     }
     let xi = pos[i];
+    let uniform = P.uniform_volume > 0.0;
+    let vi = select(xi.w, P.uniform_volume, uniform);
     let row = cell_row[i] * RANGES;
     let a = acc[i].xyz;
     let fraction = P.fraction_pressure != 0u;
@@ -126,7 +145,7 @@ fn phase_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
             let r = ff_ranges[row + c];
             for (var j = r.x; j < r.y; j++) {
                 let xj = pos[j];
-                let g = pair_gradient(xi.xyz, xj.xyz, xi.w, xj.w);
+                let g = pair_gradient(xi.xyz, xj.xyz, vi, select(xj.w, P.uniform_volume, uniform));
                 let aj = alpha[k * n + j];
                 ga += (aj - ai) * g;
                 if (fraction) {
@@ -143,8 +162,16 @@ fn phase_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
         if (ai >= MIN_PHASE_FRACTION * af) {
             vk = t - sigma * ga / ai;
         }
+        var wk = ai * t - sigma * ga;
+        // P-Eq. 11's -phi (grad p^pore_fk - ...) or P-Eq. 12's -tau' q_k,f
+        // (the sum over phases follows in mixture_velocity).
+        if (P.extra_term != 0u) {
+            let e = P.extra_scale * extra[k * n + i].xyz;
+            vk += e;
+            wk += ai * e;
+        }
         v[k * n + i] = vec4<f32>(vk, 0.0);
-        w[k * n + i] = vec4<f32>(ai * t - sigma * ga, 0.0);
+        w[k * n + i] = vec4<f32>(wk, 0.0);
     }
 }
 

@@ -21,7 +21,7 @@
 
 mod gpu_common;
 
-use porosph::backend::gpu::{DriftInput, DriftOutput};
+use porosph::backend::gpu::{DriftInput, DriftOutput, PorousDriftInput};
 use porosph::backend::GpuPasses;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::cubic_spline::CubicSpline;
@@ -30,6 +30,7 @@ use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use porosph_kernels::porous;
 
 use gpu_common::Rng;
 
@@ -47,6 +48,14 @@ struct Case {
     a_visc: [Vec<f32>; 3],
     a_p: [Vec<f32>; 3],
     phases: Vec<PhaseConstants>,
+    /// The inner pairs of a porous step: h^3 grad W_ij.
+    ffb: PairLists,
+    cell: f32,
+    beta: Vec<Vec<f32>>,
+    beta_f: Vec<f32>,
+    /// grad p^pore_fk and q_k,f, phase-major.
+    grad_pore: [Vec<f32>; 3],
+    q: [Vec<f32>; 3],
 }
 
 /// A jittered block of nx ny nz particles (spacing h, jitter +-0.15 h),
@@ -82,6 +91,13 @@ fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
     build_pairs(&mut ff, pts, pts, &grid, None, &kernel);
 
     let cell = h * h * h;
+    // The inner pairs as pipeline::step builds them: h^3 grad W_ij.
+    let mut ffb = ff.clone();
+    for blk in ffb.used_mut() {
+        for g in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
+            g.iter_mut().for_each(|x| *x *= cell);
+        }
+    }
     // 0.5 % of the particles without fluid (alpha_f = 0), V = 0 for 0.5 %.
     let vol: Vec<f32> =
         (0..n).map(|_| if rng.range(0.0, 1.0) < 0.005 { 0.0 } else { rng.range(0.8, 1.2) * cell }).collect();
@@ -126,8 +142,48 @@ fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
         PhaseConstants { density: 1500.0, tau: 2e-6, sigma: 5e-5 },
         PhaseConstants { density: 800.0, tau: 4e-6, sigma: 2e-4 },
     ];
-    Case { support, x, grid, ff, vol, alpha, alpha_f, pressure, a_visc, a_p, phases }
+    // Inner fractions: none on 40 % of the particles (beta_f = 0 < the
+    // 1 % guard), else up to what the outer fractions leave.
+    let mut beta = vec![vec![0.0f32; n]; NP];
+    for i in 0..n {
+        if rng.range(0.0, 1.0) < 0.4 {
+            continue;
+        }
+        let room = (1.0 - alpha_f[i]).max(0.05);
+        for b in beta.iter_mut() {
+            b[i] = room * rng.range(0.0, 1.0) / NP as f32;
+        }
+    }
+    let beta_f = (0..n).map(|i| beta.iter().map(|b| b[i]).sum()).collect();
+    // grad p^pore up to 1e5 Pa/m and q up to 1e-3 m/s (the soak of
+    // tests/porous.rs: p0 = 2e4 Pa over a few cm, k_w/mu = 2e-8).
+    let grad_pore = std::array::from_fn(|_| (0..NP * n).map(|_| rng.range(-1e5, 1e5)).collect());
+    let q = std::array::from_fn(|_| (0..NP * n).map(|_| rng.range(-1e-3, 1e-3)).collect());
+    Case {
+        support,
+        x,
+        grid,
+        ff,
+        vol,
+        alpha,
+        alpha_f,
+        pressure,
+        a_visc,
+        a_p,
+        phases,
+        ffb,
+        cell,
+        beta,
+        beta_f,
+        grad_pore,
+        q,
+    }
 }
+
+/// phi of P-Eq. 11 (the scene default), tau' and sigma' of P-Eq. 12.
+const PORE_DRIFT: f32 = 3e-6;
+const INNER_TAU: f32 = 1e-4;
+const INNER_SIGMA: f32 = 2e-3;
 
 /// u_mk and F_k, phase-major, x y z.
 type Out = ([Vec<f32>; 3], [Vec<f32>; 3]);
@@ -143,16 +199,41 @@ fn phase_vel<'a>(a: &'a [Vec<f32>; 3], n: usize, store: &'a mut Vec<Vec<&'a [f32
 
 /// The CPU pass as `pipeline::step::mixture_passes` runs it.
 fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
-    let n = c.vol.len();
-    let mut pf = vec![0.0; n];
+    let mut pf = vec![0.0; c.vol.len()];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
-    let inp = PhaseVelocityInput {
-        ff: &c.ff,
-        alpha_f: &c.alpha_f,
-        p_per_fraction: fraction.then_some(&pf[..]),
-        a_visc: vel(&c.a_visc),
-        a_p: vel(&c.a_p),
-    };
+    let pf = fraction.then_some(&pf[..]);
+    cpu_pass(c, &c.ff, &c.alpha, &c.alpha_f, pf, &c.phases, None, conservative)
+}
+
+/// The outer and inner passes of a step with porous solids, as
+/// `pipeline::step::mixture_passes` runs them (P-Eqs. 11-12).
+fn cpu_porous(c: &Case, conservative: bool) -> (Out, Out) {
+    let mut pf = vec![0.0; c.vol.len()];
+    drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
+    let extra = Some((&c.grad_pore, -PORE_DRIFT));
+    let outer = cpu_pass(c, &c.ff, &c.alpha, &c.alpha_f, Some(&pf), &c.phases, extra, conservative);
+    let inner_phases: Vec<PhaseConstants> =
+        c.phases.iter().map(|p| PhaseConstants { sigma: INNER_SIGMA, ..*p }).collect();
+    let extra = Some((&c.q, -INNER_TAU));
+    let inner = cpu_pass(c, &c.ffb, &c.beta, &c.beta_f, None, &inner_phases, extra, conservative);
+    (outer, inner)
+}
+
+/// One drift pass over the fractions `frac` and pairs `ff`, with an extra
+/// term `scale e_k` (porous::add_phase_term) where given.
+#[allow(clippy::too_many_arguments)]
+fn cpu_pass(
+    c: &Case,
+    ff: &PairLists,
+    frac: &[Vec<f32>],
+    frac_f: &[f32],
+    pf: Option<&[f32]>,
+    phases: &[PhaseConstants],
+    extra: Option<(&[Vec<f32>; 3], f32)>,
+    conservative: bool,
+) -> Out {
+    let n = c.vol.len();
+    let inp = PhaseVelocityInput { ff, alpha_f: frac_f, p_per_fraction: pf, a_visc: vel(&c.a_visc), a_p: vel(&c.a_p) };
     let mut u: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; NP * n]);
     let mut f: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; NP * n]);
     {
@@ -161,11 +242,17 @@ fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
         let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
         let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
         for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
-            drift::phase_velocity(&inp, &c.alpha[k], c.phases[k], VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+            let (mut v, mut w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+            drift::phase_velocity(&inp, &frac[k], phases[k], v.reborrow(), w.reborrow());
+            if let Some((e, scale)) = extra {
+                let r = k * n..(k + 1) * n;
+                let e = Vel { x: &e[0][r.clone()], y: &e[1][r.clone()], z: &e[2][r] };
+                porous::add_phase_term(&frac[k], frac_f, e, scale, v, w);
+            }
         }
     }
-    let alpha: Vec<&[f32]> = c.alpha.iter().map(|a| a.as_slice()).collect();
-    let density: Vec<f32> = c.phases.iter().map(|p| p.density).collect();
+    let frac: Vec<&[f32]> = frac.iter().map(|a| a.as_slice()).collect();
+    let density: Vec<f32> = phases.iter().map(|p| p.density).collect();
     let mut s: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut m: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     {
@@ -174,8 +261,8 @@ fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
         let [sx, sy, sz] = &mut s;
         let [mx, my, mz] = &mut m;
         drift::mixture_velocity(
-            &alpha,
-            &c.alpha_f,
+            &frac,
+            frac_f,
             &density,
             w,
             VelMut { x: sx, y: sy, z: sz },
@@ -188,16 +275,28 @@ fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
     let uu = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
     let ww = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
     for (k, (((x, y), z), ((gx, gy), gz))) in uu.zip(ww).enumerate() {
-        drift::drift_velocity(&c.alpha[k], vel(&s), m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
+        drift::drift_velocity(frac[k], vel(&s), m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
     }
     (u, f)
 }
 
 fn gpu(g: &mut porosph::backend::gpu::GpuBackend, c: &Case, fraction: bool, conservative: bool) -> Out {
+    gpu_run(g, c, fraction, conservative, false).0
+}
+
+/// The GPU pass, with the porous terms and the inner pass where `porous`.
+fn gpu_run(
+    g: &mut porosph::backend::gpu::GpuBackend,
+    c: &Case,
+    fraction: bool,
+    conservative: bool,
+    porous: bool,
+) -> (Out, Out) {
     let n = c.vol.len();
     let mut pf = vec![0.0; n];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
     let alpha: Vec<&[f32]> = c.alpha.iter().map(|a| a.as_slice()).collect();
+    let beta: Vec<&[f32]> = c.beta.iter().map(|a| a.as_slice()).collect();
     let inp = DriftInput {
         support: c.support,
         fluid_grid: &c.grid,
@@ -210,16 +309,34 @@ fn gpu(g: &mut porosph::backend::gpu::GpuBackend, c: &Case, fraction: bool, cons
         a_p: vel(&c.a_p),
         phases: &c.phases,
         conservative,
+        porous: porous.then(|| PorousDriftInput {
+            grad_pore: flat(&c.grad_pore),
+            pore_drift: PORE_DRIFT,
+            beta: &beta,
+            beta_f: &c.beta_f,
+            q: flat(&c.q),
+            inner_tau: INNER_TAU,
+            inner_sigma: INNER_SIGMA,
+            cell_volume: c.cell,
+        }),
     };
-    let mut u: [Vec<f32>; 3] = std::array::from_fn(|_| vec![f32::NAN; NP * n]);
-    let mut f: [Vec<f32>; 3] = std::array::from_fn(|_| vec![f32::NAN; NP * n]);
+    let nan = || -> [Vec<f32>; 3] { std::array::from_fn(|_| vec![f32::NAN; NP * n]) };
+    let (mut u, mut f, mut bu, mut bf) = (nan(), nan(), nan(), nan());
     {
         let [ux, uy, uz] = &mut u;
         let [fx, fy, fz] = &mut f;
         let out = DriftOutput { ux, uy, uz, fx, fy, fz };
-        g.drift(&inp, out).expect("GPU drift pass");
+        let [ux, uy, uz] = &mut bu;
+        let [fx, fy, fz] = &mut bf;
+        let inner = porous.then_some(DriftOutput { ux, uy, uz, fx, fy, fz });
+        g.drift(&inp, out, inner).expect("GPU drift pass");
     }
-    (u, f)
+    ((u, f), (bu, bf))
+}
+
+/// Three component arrays as slices.
+fn flat(a: &[Vec<f32>; 3]) -> [&[f32]; 3] {
+    [&a[0], &a[1], &a[2]]
 }
 
 /// max |a - b| / max |b|.
@@ -253,5 +370,42 @@ fn gpu_drift_matches_cpu_on_100k_particles() {
         );
         println!("max drift speed: GPU {mg:e}, CPU {mc:e}");
         assert!((mg - mc).abs() <= 2e-5 * mc);
+    }
+}
+
+/// With porous solids: P-Eq. 11's term -phi grad p^pore_fk in the outer
+/// pass and the inner pass of P-Eq. 12 (beta, sigma', -tau' q_k,f, h^3
+/// volumes), against the CPU's two passes on the same 100k particles.
+/// Same bound as above and for the same reason: the extra terms are one
+/// f32 multiply-add per component on both sides, and the inner pass sums
+/// h^3 grad W_ij (the GPU's harmonic mean of two h^3 volumes is h^3 to
+/// 1 ulp, the CPU multiplies the stored gradient by h^3).
+#[test]
+fn gpu_porous_drift_matches_cpu_on_100k_particles() {
+    let Some(mut g) = gpu_common::backend(GpuPasses::ALL) else { return };
+    let c = case(50, 50, 40, 11);
+    let n = c.vol.len();
+    for conservative in [true, false] {
+        let (outer_c, inner_c) = cpu_porous(&c, conservative);
+        let (outer_g, inner_g) = gpu_run(&mut g, &c, true, conservative, true);
+        for (pass, (gu, gf), (cu, cf)) in [("outer", &outer_g, &outer_c), ("inner", &inner_g, &inner_c)] {
+            for (name, a, b) in [("u_mk", gu, cu), ("F_k", gf, cf)] {
+                for d in 0..3 {
+                    let e = rel_err(&a[d], &b[d]);
+                    println!("porous, conservative {conservative}: {pass} {name}[{d}] rel. error {e:.2e}");
+                    assert!(e <= 2e-5, "{pass} {name}[{d}]: {e:e} (conservative {conservative})");
+                }
+            }
+            let (mut s1, mut s2) = (Vec::new(), Vec::new());
+            let (mg, mc) = (
+                drift::max_drift_speed(phase_vel(gu, n, &mut s1), n),
+                drift::max_drift_speed(phase_vel(cu, n, &mut s2), n),
+            );
+            println!("{pass} max drift speed: GPU {mg:e}, CPU {mc:e}");
+            assert!(mc > 0.0 && (mg - mc).abs() <= 2e-5 * mc);
+        }
+        // The porous terms matter here: without them the outer pass differs.
+        let plain = cpu(&c, true, conservative);
+        assert!(rel_err(&plain.0[0], &outer_c.0[0]) > 1e-2, "the porous term changes u_mk");
     }
 }

@@ -8,7 +8,9 @@
 use super::solid::SolidModel;
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::backend::gpu::{DriftInput, DriftOutput, GpuBackend, SolveInput, SolveOutput, SolveSettings};
+use crate::backend::gpu::{
+    DriftInput, DriftOutput, GpuBackend, PorousDriftInput, SolveInput, SolveOutput, SolveSettings,
+};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use glam::Vec3;
@@ -634,7 +636,7 @@ fn step_passes(
             alpha_next,
             Buffers { pair_limit: &mut w.pair_limit, pair_flux: &mut w.pair_flux },
             inner,
-            w.gpu.as_deref_mut().filter(|g| g.passes.drift && !porous).map(|backend| GpuDrift {
+            w.gpu.as_deref_mut().filter(|g| g.passes.drift).map(|backend| GpuDrift {
                 backend,
                 grid: &w.fluid_grid,
                 vol,
@@ -733,7 +735,8 @@ struct GpuDrift<'a> {
 }
 
 /// Passes 10-12 (PHYSICS.md §6) of a step with two or more phases: drift
-/// velocities (P-Eq. 11 without its porous term), the drift momentum term
+/// velocities (P-Eq. 11; with porous solids its porous term and the inner
+/// drift of P-Eq. 12, which transports beta), the drift momentum term
 /// (added to `ap`, which holds a^p on entry), and the transport of the
 /// fractions into `alpha_next` (phase k at `[k n, (k + 1) n)`). Returns
 /// the largest drift speed, m/s.
@@ -766,6 +769,13 @@ fn mixture_passes(
     let fx = zeros(arena, np * n);
     let fy = zeros(arena, np * n);
     let fz = zeros(arena, np * n);
+    // P-Eq. 12's inner fractions, drift velocities and fluxes (porous only).
+    let ni = if porous.is_some() { np * n } else { 0 };
+    let beta: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.beta[..ni.min(np)].iter().map(|b| b.as_slice()));
+    let beta_f = arena.alloc_slice_fill_iter((0..n.min(ni)).map(|i| beta.iter().map(|b| b[i]).sum::<f32>()));
+    let [bx, by, bz] = [zeros(arena, ni), zeros(arena, ni), zeros(arena, ni)];
+    let [gx, gy, gz] = [zeros(arena, ni), zeros(arena, ni), zeros(arena, ni)];
+    let mut inner_done = false;
     let mut gpu_ms = 0.0;
     let max_drift = tm.time(pass::DRIFT, || {
         let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
@@ -774,7 +784,8 @@ fn mixture_passes(
         }
         let p_per_fraction = if p.fraction_pressure { Some(&*pf) } else { None };
         if let Some(g) = gpu {
-            // The same three gathers on the GPU (shaders/drift.wgsl).
+            // The same three gathers on the GPU (shaders/drift.wgsl), with
+            // porous solids twice: outer and inner (P-Eqs. 11-12).
             let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
                 density: p.phase_density[k],
                 tau: p.phase_drift_tau[k],
@@ -792,13 +803,37 @@ fn mixture_passes(
                 a_p: Vel { x: apx, y: apy, z: apz },
                 phases,
                 conservative: p.conservative_transport,
+                porous: porous.as_ref().map(|pd| PorousDriftInput {
+                    grad_pore: pd.grad_pore,
+                    pore_drift: pd.pore_drift,
+                    beta,
+                    beta_f,
+                    q: pd.q,
+                    inner_tau: pd.inner_tau,
+                    inner_sigma: pd.inner_sigma,
+                    cell_volume: p.cell_volume(),
+                }),
             };
             let out =
                 DriftOutput { ux: &mut *ux, uy: &mut *uy, uz: &mut *uz, fx: &mut *fx, fy: &mut *fy, fz: &mut *fz };
-            match g.backend.drift(&inp, out) {
+            let inner = porous.is_some().then_some(DriftOutput {
+                ux: &mut *bx,
+                uy: &mut *by,
+                uz: &mut *bz,
+                fx: &mut *gx,
+                fy: &mut *gy,
+                fz: &mut *gz,
+            });
+            match g.backend.drift(&inp, out, inner) {
                 Ok(ms) => {
                     gpu_ms = ms.unwrap_or(0.0);
-                    return drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n);
+                    inner_done = porous.is_some();
+                    let outer = drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n);
+                    return outer.max(if inner_done {
+                        drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n)
+                    } else {
+                        0.0
+                    });
                 }
                 // Reported after the step; the pass runs on the CPU.
                 Err(e) => *g.error = Some(format!("GPU drift pass failed: {e}")),
@@ -836,36 +871,34 @@ fn mixture_passes(
     let mut beta_next = None;
     if let Some(pd) = porous {
         let PorousDrift { q, ffb, inner_tau, inner_sigma, beta_next: out, .. } = pd;
-        let beta: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
-        let beta_f = arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>()));
-        let speed = tm.time(pass::DRIFT, || {
-            let [bx, by, bz] = [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
-            let [gx, gy, gz] = [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
-            let inp = PhaseVelocityInput {
-                ff: ffb,
-                alpha_f: beta_f,
-                p_per_fraction: None,
-                a_visc,
-                a_p: Vel { x: apx, y: apy, z: apz },
-            };
-            for (k, &beta_k) in beta.iter().enumerate() {
-                let r = k * n..(k + 1) * n;
-                let phase =
-                    PhaseConstants { density: p.phase_density[k], tau: p.phase_drift_tau[k], sigma: inner_sigma };
-                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
-                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                drift::phase_velocity(&inp, beta_k, phase, v, w);
-                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
-                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                let e = Vel { x: &q[0][r.clone()], y: &q[1][r.clone()], z: &q[2][r] };
-                porosph_kernels::porous::add_phase_term(beta_k, beta_f, e, -inner_tau, v, w);
-            }
-            let ctx = MixtureSums { arena, n, density: &p.phase_density, conservative: p.conservative_transport };
-            ctx.drift_velocities(beta, beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
-            (drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n), [&*gx, &*gy, &*gz])
-        });
-        max_drift = max_drift.max(speed.0);
-        beta_next = Some((ffb, beta, speed.1, out));
+        if !inner_done {
+            let speed = tm.time(pass::DRIFT, || {
+                let inp = PhaseVelocityInput {
+                    ff: ffb,
+                    alpha_f: beta_f,
+                    p_per_fraction: None,
+                    a_visc,
+                    a_p: Vel { x: apx, y: apy, z: apz },
+                };
+                for (k, &beta_k) in beta.iter().enumerate() {
+                    let r = k * n..(k + 1) * n;
+                    let phase =
+                        PhaseConstants { density: p.phase_density[k], tau: p.phase_drift_tau[k], sigma: inner_sigma };
+                    let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                    let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                    drift::phase_velocity(&inp, beta_k, phase, v, w);
+                    let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                    let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                    let e = Vel { x: &q[0][r.clone()], y: &q[1][r.clone()], z: &q[2][r] };
+                    porosph_kernels::porous::add_phase_term(beta_k, beta_f, e, -inner_tau, v, w);
+                }
+                let ctx = MixtureSums { arena, n, density: &p.phase_density, conservative: p.conservative_transport };
+                ctx.drift_velocities(beta, beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
+                drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n)
+            });
+            max_drift = max_drift.max(speed);
+        }
+        beta_next = Some((ffb, beta, [&*gx, &*gy, &*gz], out));
     }
 
     // Pass 11: a^Dm (PHYSICS.md §4.1, sign per §8.15), added to a^p.

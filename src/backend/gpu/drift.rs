@@ -4,7 +4,10 @@
 //! fractions, p / alpha_f (fraction pressures only), a = -(a^visc + a^p)
 //! and the fluid cell-range tables; three dispatches (phase_velocity,
 //! mixture_velocity, drift_velocity) run on the device, and the drift
-//! velocities u_mk and phase fluxes F_k are read back.
+//! velocities u_mk and phase fluxes F_k are read back. With porous solids
+//! the same three dispatches run a second time in the step for the inner
+//! fractions (P-Eq. 12), over the buffers already on the device: only the
+//! inner fractions and q_k,f are uploaded for it.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::{ranges, GpuContext, GpuError};
@@ -37,6 +40,12 @@ pub struct DriftParams {
     pub kernel_k: f32,
     /// 48 / (pi H^4), 1/m^4.
     pub kernel_l: f32,
+    /// 1: add `extra_scale` e_k (P-Eqs. 11-12's porous terms); 0: none.
+    pub extra_term: u32,
+    pub extra_scale: f32,
+    /// > 0: every particle's volume (the inner pass: h^3), m^3.
+    pub uniform_volume: f32,
+    pub pad: u32,
     /// Per phase (rho_k, tau_k, sigma_k, 0).
     pub phase: [[f32; 4]; MAX_PHASES],
 }
@@ -61,6 +70,32 @@ pub struct DriftInput<'a> {
     pub phases: &'a [PhaseConstants],
     /// The conservative transport's fluxes F_k = w_k - alpha_k m.
     pub conservative: bool,
+    /// Porous solids: P-Eq. 11's porous term and the inner drift (P-Eq. 12).
+    pub porous: Option<PorousDriftInput<'a>>,
+}
+
+/// The porous terms of the drift (PHYSICS.md §4.2), as
+/// `pipeline::step::mixture_passes` adds them on the CPU: the outer
+/// phase velocities get -phi grad p^pore_fk (P-Eq. 11); the inner drift
+/// (P-Eq. 12) is the same pass over the inner fractions beta with sigma',
+/// no phase pressure, -tau' q_k,f, and every volume h^3.
+pub struct PorousDriftInput<'a> {
+    /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
+    pub grad_pore: [&'a [f32]; 3],
+    /// phi of P-Eq. 11, m^2/(Pa s).
+    pub pore_drift: f32,
+    /// beta_k per phase.
+    pub beta: &'a [&'a [f32]],
+    /// beta_f = sum_k beta_k.
+    pub beta_f: &'a [f32],
+    /// q_k,f, phase-major, m/s.
+    pub q: [&'a [f32]; 3],
+    /// tau' of P-Eq. 12.
+    pub inner_tau: f32,
+    /// sigma' of P-Eq. 12, m^2/s.
+    pub inner_sigma: f32,
+    /// h^3, the volume of the inner pairs' gradients h^3 grad W_ij, m^3.
+    pub cell_volume: f32,
 }
 
 /// What the pass writes, phase-major (phase k at `[k n, (k + 1) n)`): the
@@ -75,11 +110,15 @@ pub struct DriftOutput<'a> {
 }
 
 const ENTRY_POINTS: [&str; 3] = ["phase_velocity", "mixture_velocity", "drift_velocity"];
-/// Storage bindings 1..=11 of the shader: whether each is read-only.
-const READ_ONLY: [bool; 11] = [true, true, true, true, true, true, true, false, false, false, false];
-const NAMES: [&str; 11] = ["pos", "alpha", "alpha_f", "pf", "acc", "cell_row", "ff_ranges", "v", "w", "s", "m"];
+/// Storage bindings 1..=12 of the shader: whether each is read-only.
+const READ_ONLY: [bool; 12] = [true, true, true, true, true, true, true, false, false, false, false, true];
+const NAMES: [&str; 12] =
+    ["pos", "alpha", "alpha_f", "pf", "acc", "cell_row", "ff_ranges", "v", "w", "s", "m", "extra"];
+const ALPHA: usize = 1;
+const ALPHA_F: usize = 2;
 const V: usize = 7;
 const W: usize = 8;
+const EXTRA: usize = 11;
 const WG: u32 = 64;
 const MAX_DIM: u32 = 65535;
 
@@ -95,12 +134,13 @@ pub struct DriftGpu {
     bind_group: Option<wgpu::BindGroup>,
     params: wgpu::Buffer,
     bufs: Vec<GpuArray>,
-    read_v: GpuArray,
-    read_w: GpuArray,
+    /// u_mk, F_k of the outer pass, then of the inner pass.
+    reads: [GpuArray; 4],
     queries: Option<(wgpu::QuerySet, GpuArray, GpuArray)>,
     no_walls: CellGrid,
     pos: Vec<[f32; 4]>,
     alpha: Vec<f32>,
+    extra: Vec<[f32; 4]>,
     acc: Vec<[f32; 4]>,
     cell_row: Vec<u32>,
     ff: Vec<[u32; 2]>,
@@ -112,19 +152,19 @@ impl DriftGpu {
     pub fn new(ctx: &GpuContext) -> Self {
         let (layout, pipelines, params) =
             ctx.compute_pipelines("drift.wgsl", &READ_ONLY, &ENTRY_POINTS, std::mem::size_of::<DriftParams>());
-        let queries = ctx.timestamp_queries("drift timestamps", "drift timestamps read", 2);
+        let queries = ctx.timestamp_queries("drift timestamps", "drift timestamps read", 4);
         Self {
             pipelines,
             layout,
             bind_group: None,
             params,
             bufs: NAMES.iter().map(|n| GpuArray::new(ctx, n, STORAGE)).collect(),
-            read_v: GpuArray::new(ctx, "read u", READBACK),
-            read_w: GpuArray::new(ctx, "read F", READBACK),
+            reads: ["read u", "read F", "read inner u", "read inner F"].map(|l| GpuArray::new(ctx, l, READBACK)),
             queries,
             no_walls: CellGrid::default(),
             pos: Vec::new(),
             alpha: Vec::new(),
+            extra: Vec::new(),
             acc: Vec::new(),
             cell_row: Vec::new(),
             ff: Vec::new(),
@@ -134,13 +174,24 @@ impl DriftGpu {
 
     /// Runs the three gathers of pass 10 (as `pipeline::step` runs
     /// `drift::{phase_velocity, mixture_velocity, drift_velocity}`) and
-    /// writes u_mk and F_k; returns the device time, ms, where the adapter
-    /// has timestamps.
-    pub fn run(&mut self, ctx: &GpuContext, inp: &DriftInput, out: DriftOutput) -> Result<Option<f64>, GpuError> {
+    /// writes u_mk and F_k, and with `inp.porous` the inner drift
+    /// velocities and fluxes of P-Eq. 12 into `inner` (which must then be
+    /// given); returns the device time of both, ms, where the adapter has
+    /// timestamps.
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        inp: &DriftInput,
+        out: DriftOutput,
+        inner: Option<DriftOutput>,
+    ) -> Result<Option<f64>, GpuError> {
         let n = inp.fluid.len();
         let np = inp.alpha.len();
         if np > MAX_PHASES || inp.phases.len() != np {
             return Err(GpuError(format!("the GPU drift pass takes at most {MAX_PHASES} phases, the scene has {np}")));
+        }
+        if inp.porous.as_ref().is_some_and(|p| p.beta.len() != np) || inp.porous.is_some() != inner.is_some() {
+            return Err(GpuError("the GPU drift pass: porous input and inner output go together".into()));
         }
         if n == 0 || np == 0 {
             return Ok(Some(0.0));
@@ -151,16 +202,16 @@ impl DriftGpu {
         let f = inp.fluid;
         self.pos.clear();
         self.pos.extend((0..n).map(|i| [f.x[i], f.y[i], f.z[i], inp.vol[i]]));
-        self.alpha.clear();
-        for a in inp.alpha {
-            self.alpha.extend_from_slice(&a[..n]);
-        }
+        pack(&mut self.alpha, inp.alpha, n);
         let (av, ap) = (inp.a_visc, inp.a_p);
         self.acc.clear();
         self.acc.extend((0..n).map(|i| [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i]), 0.0]));
+        if let Some(pd) = &inp.porous {
+            pack_vec(&mut self.extra, pd.grad_pore, n * np);
+        }
 
         let (n64, np64) = (n as u64, np as u64);
-        let sizes: [u64; 11] = [
+        let sizes: [u64; 12] = [
             16 * n64,
             4 * n64 * np64,
             4 * n64,
@@ -172,13 +223,16 @@ impl DriftGpu {
             16 * n64 * np64,
             16 * n64,
             16 * n64,
+            if inp.porous.is_some() { 16 * n64 * np64 } else { 16 },
         ];
         let mut replaced = false;
         for (b, &bytes) in self.bufs.iter_mut().zip(&sizes) {
             replaced |= b.reserve(ctx, bytes, true)?;
         }
-        self.read_v.reserve(ctx, sizes[V], false)?;
-        self.read_w.reserve(ctx, sizes[W], false)?;
+        let passes = if inp.porous.is_some() { 2 } else { 1 };
+        for r in &mut self.reads[..2 * passes] {
+            r.reserve(ctx, sizes[V], false)?;
+        }
         if replaced || self.bind_group.is_none() {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
             entries.extend(
@@ -204,6 +258,10 @@ impl DriftGpu {
             inv_support: 1.0 / h,
             kernel_k: 8.0 / (PI * h * h * h),
             kernel_l: 48.0 / (PI * h * h * h * h),
+            extra_term: inp.porous.is_some() as u32,
+            extra_scale: inp.porous.as_ref().map_or(0.0, |pd| -pd.pore_drift),
+            uniform_volume: 0.0,
+            pad: 0,
             phase: [[0.0; 4]; MAX_PHASES],
         };
         for (o, c) in params.phase.iter_mut().zip(inp.phases) {
@@ -212,53 +270,52 @@ impl DriftGpu {
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let b = &self.bufs;
         b[0].upload(ctx, &self.pos);
-        b[1].upload(ctx, &self.alpha);
-        b[2].upload(ctx, &inp.alpha_f[..n]);
+        b[ALPHA].upload(ctx, &self.alpha);
+        b[ALPHA_F].upload(ctx, &inp.alpha_f[..n]);
         if let Some(pf) = inp.p_per_fraction {
             b[3].upload(ctx, &pf[..n]);
         }
         b[4].upload(ctx, &self.acc);
         b[5].upload(ctx, &self.cell_row);
         b[6].upload(ctx, &self.ff);
+        if inp.porous.is_some() {
+            b[EXTRA].upload(ctx, &self.extra);
+        }
+        ctx.queue.submit([self.encode(ctx, n, 0, sizes[V], passes == 1)]);
 
-        let groups = dims((n as u32).div_ceil(WG));
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
-                query_set: set,
-                beginning_of_pass_write_index: Some(0),
-                end_of_pass_write_index: Some(1),
-            });
-            let mut pass =
-                enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("drift"), timestamp_writes });
-            pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
-            for p in &self.pipelines {
-                pass.set_pipeline(p);
-                pass.dispatch_workgroups(groups.0, groups.1, 1);
+        // P-Eq. 12 over the same positions, accelerations and tables: the
+        // writes below are ordered after the first submission's reads.
+        if let Some(pd) = &inp.porous {
+            params.fraction_pressure = 0;
+            params.extra_scale = -pd.inner_tau;
+            params.uniform_volume = pd.cell_volume;
+            for o in params.phase.iter_mut().take(np) {
+                o[2] = pd.inner_sigma;
             }
+            ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            pack(&mut self.alpha, pd.beta, n);
+            pack_vec(&mut self.extra, pd.q, n * np);
+            let b = &self.bufs;
+            b[ALPHA].upload(ctx, &self.alpha);
+            b[ALPHA_F].upload(ctx, &pd.beta_f[..n]);
+            b[EXTRA].upload(ctx, &self.extra);
+            ctx.queue.submit([self.encode(ctx, n, 1, sizes[V], true)]);
         }
-        enc.copy_buffer_to_buffer(&self.bufs[V].buf, 0, &self.read_v.buf, 0, sizes[V]);
-        enc.copy_buffer_to_buffer(&self.bufs[W].buf, 0, &self.read_w.buf, 0, sizes[W]);
-        if let Some((set, resolve, read)) = &self.queries {
-            enc.resolve_query_set(set, 0..2, &resolve.buf, 0);
-            enc.copy_buffer_to_buffer(&resolve.buf, 0, &read.buf, 0, 16);
-        }
-        ctx.queue.submit([enc.finish()]);
-        let mut reads = vec![(&self.read_v.buf, sizes[V]), (&self.read_w.buf, sizes[W])];
+
+        let mut reads: Vec<(&wgpu::Buffer, u64)> =
+            self.reads[..2 * passes].iter().map(|r| (&r.buf, sizes[V])).collect();
         if let Some((_, _, read)) = &self.queries {
-            reads.push((&read.buf, 16));
+            reads.push((&read.buf, 32));
         }
-        let mut stamps = [0u64; 2];
-        let DriftOutput { ux, uy, uz, fx, fy, fz } = out;
+        let mut stamps = [0u64; 4];
+        let mut outs = [Some(out), inner];
         read_back(ctx, &reads, |k, bytes| {
-            let (x, y, z) = match k {
-                0 => (&mut *ux, &mut *uy, &mut *uz),
-                1 => (&mut *fx, &mut *fy, &mut *fz),
-                _ => {
-                    stamps = bytemuck::pod_read_unaligned(bytes);
-                    return;
-                }
-            };
+            if k == 2 * passes {
+                stamps = bytemuck::pod_read_unaligned(bytes);
+                return;
+            }
+            let Some(DriftOutput { ux, uy, uz, fx, fy, fz }) = &mut outs[k / 2] else { return };
+            let (x, y, z) = if k % 2 == 0 { (ux, uy, uz) } else { (fx, fy, fz) };
             for (i, v) in bytes.chunks_exact(16).enumerate() {
                 let a: [f32; 4] = bytemuck::pod_read_unaligned(v);
                 (x[i], y[i], z[i]) = (a[0], a[1], a[2]);
@@ -266,7 +323,55 @@ impl DriftGpu {
         })?;
         Ok(self.queries.as_ref().map(|_| {
             let period = f64::from(ctx.queue.get_timestamp_period());
-            stamps[1].saturating_sub(stamps[0]) as f64 * period * 1e-6
+            let ticks: u64 = (0..passes).map(|p| stamps[2 * p + 1].saturating_sub(stamps[2 * p])).sum();
+            ticks as f64 * period * 1e-6
         }))
     }
+
+    /// The three dispatches of pass `pass` (0 outer, 1 inner) with its
+    /// timestamps, and the copies of u_mk and F_k (`bytes` each) into that
+    /// pass's read-back buffers; `last` also resolves the timestamps.
+    fn encode(&self, ctx: &GpuContext, n: usize, pass: usize, bytes: u64, last: bool) -> wgpu::CommandBuffer {
+        let groups = dims((n as u32).div_ceil(WG));
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let q = 2 * pass as u32;
+            let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
+                query_set: set,
+                beginning_of_pass_write_index: Some(q),
+                end_of_pass_write_index: Some(q + 1),
+            });
+            let mut cp =
+                enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("drift"), timestamp_writes });
+            cp.set_bind_group(0, self.bind_group.as_ref(), &[]);
+            for p in &self.pipelines {
+                cp.set_pipeline(p);
+                cp.dispatch_workgroups(groups.0, groups.1, 1);
+            }
+        }
+        enc.copy_buffer_to_buffer(&self.bufs[V].buf, 0, &self.reads[2 * pass].buf, 0, bytes);
+        enc.copy_buffer_to_buffer(&self.bufs[W].buf, 0, &self.reads[2 * pass + 1].buf, 0, bytes);
+        if last {
+            if let Some((set, resolve, read)) = &self.queries {
+                let count = 2 * (pass as u32 + 1);
+                enc.resolve_query_set(set, 0..count, &resolve.buf, 0);
+                enc.copy_buffer_to_buffer(&resolve.buf, 0, &read.buf, 0, 8 * u64::from(count));
+            }
+        }
+        enc.finish()
+    }
+}
+
+/// Per-phase arrays, phase-major, into one flat array.
+fn pack(out: &mut Vec<f32>, phases: &[&[f32]], n: usize) {
+    out.clear();
+    for a in phases {
+        out.extend_from_slice(&a[..n]);
+    }
+}
+
+/// Three flat component arrays of `len` values into xyz0 vectors.
+fn pack_vec(out: &mut Vec<[f32; 4]>, c: [&[f32]; 3], len: usize) {
+    out.clear();
+    out.extend((0..len).map(|i| [c[0][i], c[1][i], c[2][i], 0.0]));
 }

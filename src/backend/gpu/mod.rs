@@ -11,7 +11,7 @@ pub mod ranges;
 #[cfg(test)]
 mod shader_tests;
 
-pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams};
+pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams, PorousDriftInput};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
 pub use neighbors::{NeighborParams, NeighborsGpu};
 pub use ranges::{RangesGpu, RangesParams};
@@ -221,9 +221,15 @@ impl GpuBackend {
         self.iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, input, out)
     }
 
-    /// The drift velocities (pass 10) on the GPU; see [`DriftGpu::run`].
-    pub fn drift(&mut self, input: &DriftInput, out: DriftOutput) -> Result<Option<f64>, GpuError> {
+    /// The drift velocities (pass 10; with porous solids also the inner
+    /// ones, into `inner`) on the GPU; see [`DriftGpu::run`].
+    pub fn drift(
+        &mut self,
+        input: &DriftInput,
+        out: DriftOutput,
+        inner: Option<DriftOutput>,
+    ) -> Result<Option<f64>, GpuError> {
         let ctx = &self.ctx;
-        self.drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, input, out)
+        self.drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, input, out, inner)
     }
 }

@@ -113,6 +113,10 @@ fn drift_params_layout_and_entry_points_match_wgsl() {
         inv_support,
         kernel_k,
         kernel_l,
+        extra_term,
+        extra_scale,
+        uniform_volume,
+        pad,
         phase,
     );
     assert_eq!(wgsl_layout(&module, "DriftParams"), rust);
