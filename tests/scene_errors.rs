@@ -233,6 +233,16 @@ fn unknown_key_in_simulation() {
 }
 
 #[test]
+fn max_dt_equal_to_end_time_is_accepted_and_above_rejected() {
+    // 0.002 is not exact in f32 (0.0020000000949...): the check must not
+    // compare the f32 max_dt with the f64 end_time.
+    let text = edited("end_time = 1.0\n", "end_time = 0.002\n");
+    parse(&text).unwrap_or_else(|e| panic!("max_dt = end_time rejected: {e}"));
+    let text = edited("end_time = 1.0\n", "end_time = 0.0019\n");
+    assert_rejected(&text, "simulation.max_dt", "expected max_dt <= end_time = 0.0019 s, found max_dt = 0.002 s");
+}
+
+#[test]
 fn missing_required_key() {
     let text = edited("end_time = 1.0\n", "");
     assert_rejected(&text, "simulation.end_time", "missing required key `end_time`");

@@ -419,7 +419,9 @@ impl Cx<'_> {
         let dt_what = "the largest time step in s";
         let max_dt =
             self.f32_in(&key("max_dt"), self.required(path, t, "max_dt", dt_what)?, dt_what, Range::Positive)?;
-        if f64::from(max_dt) > end_time {
+        // max_dt is stored as f32: compare in f32, or `max_dt = end_time`
+        // (0.002 = 0.002) fails by the f32 rounding of 0.002.
+        if max_dt > end_time as f32 {
             return Err(self.err(
                 &key("max_dt"),
                 format!("expected max_dt <= end_time = {end_time} s, found max_dt = {max_dt} s"),
