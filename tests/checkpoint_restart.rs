@@ -106,9 +106,7 @@ fn resumed_run_with_a_solid_is_bitwise_the_uninterrupted_run() {
 
 /// A porous cube soaking in water (issue 5), small: a 0.3 x 0.3 x 0.1 m
 /// closed tank filled to 0.15 m, a fixed 0.1 m porous cube under water, at
-/// d = 0.015 m (959 fluid particles). (At d = 0.02 m the one fluid layer
-/// left between the floor and the cube, 0.02 m below it, makes step 1
-/// explode, with or without the porous terms.)
+/// d = 0.015 m (959 fluid particles).
 const POROUS_SOAK: &str = r#"
 [simulation]
 particle_spacing = 0.015

@@ -506,6 +506,53 @@ pub struct Jacobi {
     pub omega: f32,
 }
 
+/// Divergence test of the relaxed Jacobi loop on its mean density error.
+///
+/// Relaxed Jacobi converges only while omega times the largest eigenvalue
+/// of D^-1 A stays below 2. A boundary row's diagonal counts only its own
+/// push on its fluid neighbours; where one fluid layer lies between two
+/// boundaries (a block one spacing above the floor), the rows on either
+/// side push on the same particles from opposite sides, and the mode in
+/// which they rise in turn has an eigenvalue above 2 / 0.5: the default
+/// omega = 0.5 lets it grow ~1.3x per two sweeps until the step explodes
+/// (README, known limits). The loop then starts over from the warm start
+/// with a smaller omega ([`RELAXATION_BACKOFF`]).
+///
+/// The test: after at least [`MIN_SWEEPS_BEFORE_BACKOFF`] sweeps, the
+/// error has been above twice its smallest value so far for two sweeps in
+/// a row. A converging solve never does that (its error falls, with small
+/// rises in the first sweeps), so scenes that converge are not touched.
+#[derive(Clone, Copy, Debug)]
+pub struct Divergence {
+    best: f32,
+    above: u32,
+    sweeps: u32,
+}
+
+/// The relaxation factor is multiplied by this after a divergence.
+pub const RELAXATION_BACKOFF: f32 = 0.7;
+/// At most this many restarts per solve (omega down to 0.34 omega).
+pub const MAX_BACKOFFS: u32 = 3;
+/// Sweeps after a (re)start before the error is judged.
+pub const MIN_SWEEPS_BEFORE_BACKOFF: u32 = 4;
+
+impl Default for Divergence {
+    fn default() -> Self {
+        Self { best: f32::INFINITY, above: 0, sweeps: 0 }
+    }
+}
+
+impl Divergence {
+    /// Takes the mean density error after a sweep; true if the iteration
+    /// diverges.
+    pub fn diverging(&mut self, error: f32) -> bool {
+        self.sweeps += 1;
+        self.best = self.best.min(error);
+        self.above = if error > 2.0 * self.best { self.above + 1 } else { 0 };
+        self.sweeps >= MIN_SWEEPS_BEFORE_BACKOFF && self.above >= 2
+    }
+}
+
 /// Relaxed Jacobi update of the fluid rows, P-Eq. 28:
 /// (Ap)_f = dt^2 sum_j Vbar (a^p_f - a^p_j).grad W (walls: a^p = 0; solids:
 /// the accelerations given with `fs`), r_f = S_f - (Ap)_f,
@@ -633,4 +680,37 @@ pub fn solid_pressure_force(sf: &PairLists, p_s: &[f32], p_f: &[f32], vol_f: &[f
                 oz[q] = -sum(sz);
             }
         });
+}
+
+#[cfg(test)]
+mod divergence_tests {
+    use super::Divergence;
+
+    #[test]
+    fn converging_errors_never_trigger() {
+        // The first sweeps of a converging solve (tests: a rise at sweep 2).
+        let mut d = Divergence::default();
+        for e in [3.9e-3, 5.3e-3, 3.7e-3, 3.3e-3, 2.8e-3, 2.5e-3, 2.1e-3, 1.9e-3, 1.0e-3, 9.0e-4] {
+            assert!(!d.diverging(e));
+        }
+    }
+
+    #[test]
+    fn growing_errors_trigger_after_two_sweeps_above_twice_the_best() {
+        // The mean error of the one-layer solve at omega = 0.5 (sweeps 12-22).
+        let errors =
+            [1.49e-3, 1.43e-3, 1.40e-3, 1.47e-3, 1.44e-3, 1.73e-3, 1.70e-3, 2.32e-3, 2.35e-3, 3.51e-3, 3.60e-3];
+        let mut d = Divergence::default();
+        let fired: Vec<bool> = errors.iter().map(|&e| d.diverging(e)).collect();
+        assert_eq!(fired.iter().position(|&f| f), Some(10), "{fired:?}");
+    }
+
+    #[test]
+    fn early_sweeps_are_not_judged() {
+        let mut d = Divergence::default();
+        assert!(!d.diverging(1e-3));
+        assert!(!d.diverging(5e-3));
+        assert!(!d.diverging(6e-3));
+        assert!(d.diverging(7e-3));
+    }
 }

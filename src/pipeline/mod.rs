@@ -86,8 +86,11 @@ pub struct Params {
 pub struct StepStats {
     /// The step's dt, s.
     pub dt: f32,
-    /// Jacobi iterations of the pressure solve.
+    /// Jacobi iterations of the pressure solve (all sweeps, restarts included).
     pub iterations: u32,
+    /// Times the pressure solve diverged and started over with a smaller
+    /// relaxation factor (`iisph::Divergence`).
+    pub solve_restarts: u32,
     /// Mean predicted density error after the solve (fraction of rest density).
     pub density_error: f32,
     /// Largest fluid speed after the step, m/s.

@@ -541,6 +541,11 @@ fn step_passes(
                 Err(e) => w.gpu_error = Some(format!("GPU pressure solve failed: {e}")),
             }
         }
+        // The warm start, kept for a restart with a smaller omega
+        // (iisph::Divergence).
+        let start = [arena.alloc_slice_copy(&fluid.pressure), arena.alloc_slice_copy(p_b), arena.alloc_slice_copy(p_s)];
+        let mut omega = p.omega;
+        let mut guard = iisph::Divergence::default();
         let mut it = 0;
         loop {
             let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
@@ -553,7 +558,7 @@ fn step_passes(
             }
             let ap = Vel { x: apx, y: apy, z: apz };
             let a_s = Vel { x: asx, y: asy, z: asz };
-            let jac = Jacobi { dt, omega: p.omega };
+            let jac = Jacobi { dt, omega };
             let rows = Rows { source: src, diag };
             let fs = fs_pairs.map(|pairs| (pairs, a_s));
             iisph::fluid_jacobi(&w.ff, &w.fb, fs, ap, rows, jac, &mut fluid.pressure, err);
@@ -561,13 +566,22 @@ fn step_passes(
             if ns > 0 {
                 iisph::wall_jacobi(&w.sf, ap, Some(a_s), Rows { source: src_s, diag: diag_s }, jac, p_s);
             }
-            for (k, &b) in w.active.iter().enumerate() {
-                walls.pressure[b as usize] = p_b[k];
-            }
             it += 1;
             let e = (sum_f64(n, parts, |i| err[i] as f64) / rows_active) as f32;
             st.density_error = e;
-            if (it >= p.min_iterations && e <= p.max_density_error) || it >= p.max_iterations {
+            let restart = guard.diverging(e) && e > p.max_density_error && st.solve_restarts < iisph::MAX_BACKOFFS;
+            if restart {
+                fluid.pressure.copy_from_slice(start[0]);
+                p_b.copy_from_slice(start[1]);
+                p_s.copy_from_slice(start[2]);
+                omega *= iisph::RELAXATION_BACKOFF;
+                guard = iisph::Divergence::default();
+                st.solve_restarts += 1;
+            }
+            for (k, &b) in w.active.iter().enumerate() {
+                walls.pressure[b as usize] = p_b[k];
+            }
+            if (!restart && it >= p.min_iterations && e <= p.max_density_error) || it >= p.max_iterations {
                 break;
             }
         }
