@@ -117,6 +117,29 @@ pub fn kernel_sums(pairs: &PairLists, val: &[f32], out: &mut [f32]) {
     });
 }
 
+/// out_i = sum_j val_j W_ij over the pairs of every query whose target is
+/// in the query's own group (`group`, indexed like both sides: queries
+/// and targets are the same set). The boundary part of a solid row's sigma
+/// (PHYSICS.md §2.3) counts only its own body, as a wall row counts only
+/// walls: a row then resists compression by fluid, never by another body
+/// pressed against it, which the fluid cannot relieve (its pressure grew
+/// as 1/diag on rows with one far fluid neighbour: 5e9 Pa where two porous
+/// layers touched, README known limits).
+pub fn kernel_sums_within(pairs: &PairLists, val: &[f32], group: &[u32], out: &mut [f32]) {
+    out.par_chunks_mut(BLOCK).zip(pairs.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
+        for (q, o) in o.iter_mut().enumerate() {
+            let g = group[b * BLOCK + q];
+            let r = blk.range(q);
+            let all_own = blk.j[r.clone()].iter().all(|&j| group[j as usize] == g);
+            *o = if all_own {
+                weighted_sum(&blk.j, &blk.w, r, val)
+            } else {
+                r.filter(|&k| group[blk.j[k] as usize] == g).map(|k| val[blk.j[k] as usize] * blk.w[k]).sum()
+            };
+        }
+    });
+}
+
 #[inline(always)]
 fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) -> f32 {
     let (j, w) = (&j[..r.end], &w[..r.end]);

@@ -324,7 +324,9 @@ fn step_passes(
         iisph::fluid_volumes(&w.ff, &w.fb, fs, v0, &walls.rest_volume, sigma, vol);
         if ns > 0 {
             let sigma_ss = zeros(arena, ns);
-            iisph::kernel_sums(&w.ss, v0_s, sigma_ss);
+            let group = arena
+                .alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
+            iisph::kernel_sums_within(&w.ss, v0_s, group, sigma_ss);
             iisph::wall_volumes(&w.sf, &w.solid_rows, sigma_ss, v0_s, v0, sigma_s, vol_s);
         }
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, v0, sigma_b, vol_b);
