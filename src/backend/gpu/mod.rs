@@ -19,13 +19,39 @@ pub use ranges::{RangesGpu, RangesParams};
 use super::GpuPasses;
 use std::fmt;
 
-/// The WGSL sources, by file name (compiled into the binary).
-pub const SHADERS: [(&str, &str); 4] = [
-    ("drift.wgsl", include_str!("../../../shaders/drift.wgsl")),
-    ("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl")),
-    ("neighbors.wgsl", include_str!("../../../shaders/neighbors.wgsl")),
-    ("ranges.wgsl", include_str!("../../../shaders/ranges.wgsl")),
+/// Shared WGSL (WGSL has no include), by file name: prepended to the
+/// shaders of [`SHADERS`] that list it. `common_grid.wgsl`: WG, RANGES, the
+/// grid constants, `linear_index`, `cell_coord`, `morton`;
+/// `common_kernel.wgsl`: `grad_over_r`, `harmonic_volumes`,
+/// `pair_gradient`, which read the kernel fields of the shader's `P`.
+pub const COMMON: [(&str, &str); 2] = [
+    ("common_grid.wgsl", include_str!("../../../shaders/common_grid.wgsl")),
+    ("common_kernel.wgsl", include_str!("../../../shaders/common_kernel.wgsl")),
 ];
+
+/// The WGSL sources of the passes, by file name (compiled into the binary),
+/// with the [`COMMON`] files prepended to each, in order.
+pub const SHADERS: [(&str, &[&str], &str); 4] = [
+    // Keeps its own copies of the common code for now.
+    ("drift.wgsl", &[], include_str!("../../../shaders/drift.wgsl")),
+    ("iisph.wgsl", &["common_grid.wgsl", "common_kernel.wgsl"], include_str!("../../../shaders/iisph.wgsl")),
+    ("neighbors.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/neighbors.wgsl")),
+    ("ranges.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/ranges.wgsl")),
+];
+
+/// The full source of `shaders/<file>` as compiled: its [`COMMON`] files,
+/// then the file; `None` for a file not in [`SHADERS`].
+pub fn shader_source(file: &str) -> Option<String> {
+    let (_, common, src) = SHADERS.iter().find(|(f, _, _)| *f == file)?;
+    let mut out = String::new();
+    for c in *common {
+        let (_, text) = COMMON.iter().find(|(f, _)| f == c)?;
+        out.push_str(text);
+        out.push('\n');
+    }
+    out.push_str(src);
+    Some(out)
+}
 
 /// Why the GPU backend cannot run.
 #[derive(Clone, Debug, PartialEq)]
@@ -99,9 +125,10 @@ impl GpuContext {
         format!("{} ({:?}, {:?})", self.info.name, self.info.device_type, self.info.backend)
     }
 
-    /// Compiles `shaders/<file>` into a module.
+    /// Compiles `shaders/<file>`, with its common files prepended
+    /// ([`shader_source`]), into a module.
     pub fn shader(&self, file: &str) -> wgpu::ShaderModule {
-        let src = SHADERS.iter().find(|(f, _)| *f == file).map(|(_, s)| *s).unwrap_or_default();
+        let src = shader_source(file).unwrap_or_default();
         self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(file),
             source: wgpu::ShaderSource::Wgsl(src.into()),
