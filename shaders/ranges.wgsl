@@ -7,7 +7,9 @@
 // hash table, the GPU by binary search in the sorted keys: both find the
 // same cell or none, so the tables are bitwise equal. Integer work only,
 // except cell_of of the walls (the same f32 operations as grid.rs, as in
-// shaders/neighbors.wgsl).
+// shaders/neighbors.wgsl). fluid_rows also writes cell_row, each fluid
+// particle's row (its cell; the fluid is sorted by cell). The tables stay on
+// the device: the passes (iisph.wgsl, drift.wgsl) bind these buffers.
 //
 // Prepended: common_grid.wgsl (WG, RANGES, MAX_CELL, linear_index,
 // cell_coord, morton).
@@ -34,6 +36,8 @@ struct RangesParams {
 @group(0) @binding(7) var<storage, read_write> ff: array<vec2<u32>>;
 @group(0) @binding(8) var<storage, read_write> fb: array<vec2<u32>>;
 @group(0) @binding(9) var<storage, read_write> bf: array<vec2<u32>>;
+// Per fluid particle: its cell, the row of ff / fb.
+@group(0) @binding(10) var<storage, read_write> cell_row: array<u32>;
 
 // grid.rs unmorton.
 fn unmorton(k: vec2<u32>) -> vec3<u32> {
@@ -116,7 +120,7 @@ fn neighbor_ranges(t: u32, c: vec3<u32>) -> array<vec2<u32>, 27> {
 }
 
 // ranges.rs fluid_rows: row c of ff / fb holds the fluid / wall ranges
-// around fluid cell c.
+// around fluid cell c, and cell_row of the particles of cell c is c.
 @compute @workgroup_size(64)
 fn fluid_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let c = linear_index(gid, nwg);
@@ -129,6 +133,9 @@ fn fluid_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     for (var k = 0u; k < RANGES; k++) {
         ff[c * RANGES + k] = f[k];
         fb[c * RANGES + k] = b[k];
+    }
+    for (var i = fluid_starts[c]; i < fluid_starts[c + 1u]; i++) {
+        cell_row[i] = c;
     }
 }
 

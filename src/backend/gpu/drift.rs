@@ -1,13 +1,15 @@
 //! Pass 10 on the GPU: the drift velocities of the mixture model
 //! (`shaders/drift.wgsl`, the twin of `kernels/src/drift.rs`; PHYSICS.md
 //! §4.1). Per step the host uploads positions and current volumes, the
-//! fractions, p / alpha_f (fraction pressures only), a = -(a^visc + a^p)
-//! and the fluid cell-range tables; three dispatches (phase_velocity,
+//! fractions, p / alpha_f (fraction pressures only) and a = -(a^visc + a^p);
+//! the fluid cell-range tables are bound from [`RangesGpu`] (built on the
+//! device, shared with the pressure solve); three dispatches (phase_velocity,
 //! mixture_velocity, drift_velocity) run on the device, and the drift
 //! velocities u_mk and phase fluxes F_k are read back.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
-use super::{ranges, GpuContext, GpuError};
+use super::ranges::RangesGpu;
+use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::Vel;
@@ -78,6 +80,9 @@ const ENTRY_POINTS: [&str; 3] = ["phase_velocity", "mixture_velocity", "drift_ve
 /// Storage bindings 1..=11 of the shader: whether each is read-only.
 const READ_ONLY: [bool; 11] = [true, true, true, true, true, true, true, false, false, false, false];
 const NAMES: [&str; 11] = ["pos", "alpha", "alpha_f", "pf", "acc", "cell_row", "ff_ranges", "v", "w", "s", "m"];
+// Bound from the cell-range tables (their own slots stay unused).
+const CELL_ROW: usize = 5;
+const FF: usize = 6;
 const V: usize = 7;
 const W: usize = 8;
 const WG: u32 = 64;
@@ -93,18 +98,16 @@ pub struct DriftGpu {
     pipelines: Vec<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
+    /// The [`RangesGpu::version`] the bind group was made with.
+    tables_version: Option<u64>,
     params: wgpu::Buffer,
     bufs: Vec<GpuArray>,
     read_v: GpuArray,
     read_w: GpuArray,
     queries: Option<(wgpu::QuerySet, GpuArray, GpuArray)>,
-    no_walls: CellGrid,
     pos: Vec<[f32; 4]>,
     alpha: Vec<f32>,
     acc: Vec<[f32; 4]>,
-    cell_row: Vec<u32>,
-    ff: Vec<[u32; 2]>,
-    fb: Vec<[u32; 2]>,
 }
 
 impl DriftGpu {
@@ -117,26 +120,30 @@ impl DriftGpu {
             pipelines,
             layout,
             bind_group: None,
+            tables_version: None,
             params,
             bufs: NAMES.iter().map(|n| GpuArray::new(ctx, n, STORAGE)).collect(),
             read_v: GpuArray::new(ctx, "read u", READBACK),
             read_w: GpuArray::new(ctx, "read F", READBACK),
             queries,
-            no_walls: CellGrid::default(),
             pos: Vec::new(),
             alpha: Vec::new(),
             acc: Vec::new(),
-            cell_row: Vec::new(),
-            ff: Vec::new(),
-            fb: Vec::new(),
         }
     }
 
     /// Runs the three gathers of pass 10 (as `pipeline::step` runs
     /// `drift::{phase_velocity, mixture_velocity, drift_velocity}`) and
     /// writes u_mk and F_k; returns the device time, ms, where the adapter
-    /// has timestamps.
-    pub fn run(&mut self, ctx: &GpuContext, inp: &DriftInput, out: DriftOutput) -> Result<Option<f64>, GpuError> {
+    /// has timestamps. `tables` must hold the fluid tables of
+    /// `inp.fluid_grid` ([`RangesGpu::ensure`]; `GpuBackend::drift` does that).
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        tables: &RangesGpu,
+        inp: &DriftInput,
+        out: DriftOutput,
+    ) -> Result<Option<f64>, GpuError> {
         let n = inp.fluid.len();
         let np = inp.alpha.len();
         if np > MAX_PHASES || inp.phases.len() != np {
@@ -146,8 +153,14 @@ impl DriftGpu {
             return Ok(Some(0.0));
         }
 
+        if tables.n_fluid() != n {
+            return Err(GpuError(format!(
+                "the cell-range tables on the GPU have {} particles, not {n}",
+                tables.n_fluid()
+            )));
+        }
+
         // Host staging.
-        ranges::fluid_rows(inp.fluid_grid, &self.no_walls, &mut self.cell_row, &mut self.ff, &mut self.fb);
         let f = inp.fluid;
         self.pos.clear();
         self.pos.extend((0..n).map(|i| [f.x[i], f.y[i], f.z[i], inp.vol[i]]));
@@ -166,8 +179,8 @@ impl DriftGpu {
             4 * n64,
             if inp.p_per_fraction.is_some() { 4 * n64 } else { 4 },
             16 * n64,
-            4 * n64,
-            8 * self.ff.len() as u64,
+            0,
+            0,
             16 * n64 * np64,
             16 * n64 * np64,
             16 * n64,
@@ -179,14 +192,17 @@ impl DriftGpu {
         }
         self.read_v.reserve(ctx, sizes[V], false)?;
         self.read_w.reserve(ctx, sizes[W], false)?;
-        if replaced || self.bind_group.is_none() {
+        if replaced || self.bind_group.is_none() || self.tables_version != Some(tables.version()) {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
-            entries.extend(
-                self.bufs
-                    .iter()
-                    .enumerate()
-                    .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.buf.as_entire_binding() }),
-            );
+            entries.extend(self.bufs.iter().enumerate().map(|(k, b)| {
+                let buf = match k {
+                    CELL_ROW => tables.cell_row(),
+                    FF => tables.ff(),
+                    _ => &b.buf,
+                };
+                wgpu::BindGroupEntry { binding: k as u32 + 1, resource: buf.as_entire_binding() }
+            }));
+            self.tables_version = Some(tables.version());
             self.bind_group = Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("drift"),
                 layout: &self.layout,
@@ -218,8 +234,6 @@ impl DriftGpu {
             b[3].upload(ctx, &pf[..n]);
         }
         b[4].upload(ctx, &self.acc);
-        b[5].upload(ctx, &self.cell_row);
-        b[6].upload(ctx, &self.ff);
 
         let groups = dims((n as u32).div_ceil(WG));
         let mut enc = ctx.device.create_command_encoder(&Default::default());

@@ -14,7 +14,7 @@ mod shader_tests;
 pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
 pub use neighbors::{NeighborParams, NeighborsGpu};
-pub use ranges::{RangesGpu, RangesParams};
+pub use ranges::{RangesGpu, RangesParams, WallInput};
 
 use super::GpuPasses;
 use std::fmt;
@@ -215,19 +215,23 @@ impl GpuContext {
 }
 
 /// The GPU backend of a run: the device, which passes it runs, and the
-/// pipelines and resident buffers of each (built on first use).
+/// pipelines and resident buffers of each (built on first use). The
+/// cell-range tables are shared: the first pass of a step that needs them
+/// builds them on the device for the step's grids, the others bind the
+/// same buffers.
 pub struct GpuBackend {
     pub ctx: GpuContext,
     pub passes: GpuPasses,
     iisph: Option<IisphGpu>,
     neighbors: Option<NeighborsGpu>,
     drift: Option<DriftGpu>,
+    ranges: Option<RangesGpu>,
 }
 
 impl GpuBackend {
     /// Opens the GPU (an error says why there is none).
     pub fn new(passes: GpuPasses) -> Result<Self, GpuError> {
-        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None })
+        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None, ranges: None })
     }
 
     /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
@@ -243,14 +247,27 @@ impl GpuBackend {
     }
 
     /// The IISPH Jacobi loop (pass 5) on the GPU; see [`IisphGpu::solve`].
+    /// Builds the cell-range tables with the walls first where this step's
+    /// are not on the device yet (their device time is in `gpu_ms`).
     pub fn pressure_solve(&mut self, input: &SolveInput, out: SolveOutput) -> Result<SolveReport, GpuError> {
-        let ctx = &self.ctx;
-        self.iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, input, out)
+        let Self { ctx, ranges, iisph, .. } = self;
+        let ranges = ranges.get_or_insert_with(|| RangesGpu::new(ctx));
+        let walls = WallInput { grid: input.wall_grid, walls: input.walls, active: input.active };
+        let ms = ranges.ensure(ctx, input.fluid_grid, Some(walls))?;
+        let mut report = iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, ranges, input, out)?;
+        report.gpu_ms = report.gpu_ms.map(|t| t + ms);
+        Ok(report)
     }
 
     /// The drift velocities (pass 10) on the GPU; see [`DriftGpu::run`].
+    /// Builds the fluid cell-range tables first where this step's are not
+    /// on the device yet (the pressure solve's serve; the device time of a
+    /// build is in the result).
     pub fn drift(&mut self, input: &DriftInput, out: DriftOutput) -> Result<Option<f64>, GpuError> {
-        let ctx = &self.ctx;
-        self.drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, input, out)
+        let Self { ctx, ranges, drift, .. } = self;
+        let ranges = ranges.get_or_insert_with(|| RangesGpu::new(ctx));
+        let ms = ranges.ensure(ctx, input.fluid_grid, None)?;
+        let t = drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, ranges, input, out)?;
+        Ok(t.map(|t| t + ms))
     }
 }
