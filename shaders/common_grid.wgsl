@@ -32,21 +32,33 @@ fn cell_coord(v: f32, inv_cell: f32) -> u32 {
     return u32(clamp(f + ORIGIN, 0.0, MAX_COORD));
 }
 
+// Bits 0..9 of x to bits 0, 3, .., 27 (grid.rs part1by2 on 32 bits).
+fn spread10(x: u32) -> u32 {
+    var v = x & 0x3ffu;
+    v = (v | (v << 16u)) & 0x030000ffu;
+    v = (v | (v << 8u)) & 0x0300f00fu;
+    v = (v | (v << 4u)) & 0x030c30c3u;
+    v = (v | (v << 2u)) & 0x09249249u;
+    return v;
+}
+
+// Bits 0..20 of x to bits 0, 3, .., 60 of a 64-bit word, as (hi, lo):
+// bits 0..10 to lo bits 0..30, bits 11..20 to bits 33..60 (hi bits 1..28).
+fn spread21(x: u32) -> vec2<u32> {
+    let lo = spread10(x) | (((x >> 10u) & 1u) << 30u);
+    let hi = spread10(x >> 11u) << 1u;
+    return vec2<u32>(hi, lo);
+}
+
 // Morton key of cell coordinates (grid.rs morton): bit b of axis a goes to
-// bit 3 b + a of the 63-bit key, returned as (hi, lo).
+// bit 3 b + a of the 63-bit key, returned as (hi, lo); part1by2 of each
+// axis as in grid.rs, on two 32-bit words.
 fn morton(c: vec3<u32>) -> vec2<u32> {
-    var hi = 0u;
-    var lo = 0u;
-    for (var b = 0u; b < 21u; b++) {
-        for (var a = 0u; a < 3u; a++) {
-            let bit = (c[a] >> b) & 1u;
-            let p = 3u * b + a;
-            if (p < 32u) {
-                lo |= bit << p;
-            } else {
-                hi |= bit << (p - 32u);
-            }
-        }
-    }
+    let x = spread21(c.x);
+    let y = spread21(c.y);
+    let z = spread21(c.z);
+    // x | y << 1 | z << 2 on (hi, lo) words.
+    let hi = x.x | (y.x << 1u) | (y.y >> 31u) | (z.x << 2u) | (z.y >> 30u);
+    let lo = x.y | (y.y << 1u) | (z.y << 2u);
     return vec2<u32>(hi, lo);
 }

@@ -69,9 +69,17 @@ fn gpu_cell_ranges_are_bitwise_the_cpu_tables_on_100k_particles() {
     let walls = Points { x: &wx[0], y: &wx[1], z: &wx[2] };
     let active: Vec<u32> = (0..30_000u32).filter(|_| rng.range(0.0, 1.0) < 0.5).collect();
     for input in [Some(WallInput { grid: &wall_grid, walls, active: &active }), None] {
+        let t = std::time::Instant::now();
         let cpu = cpu_tables(&fluid_grid, input);
+        let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
         let mut gpu = RangesGpu::new(&ctx);
-        gpu.ensure(&ctx, &fluid_grid, input).expect("GPU ranges");
+        let t = std::time::Instant::now();
+        let device_ms = gpu.ensure(&ctx, &fluid_grid, input).expect("GPU ranges");
+        let gpu_ms = t.elapsed().as_secs_f64() * 1e3;
+        eprintln!(
+            "build: CPU {cpu_ms:.1} ms ({} threads); GPU {gpu_ms:.1} ms wall (first, with uploads), device {device_ms:.1} ms",
+            rayon::current_num_threads()
+        );
         let g = gpu_tables(&gpu, &ctx);
         let occupied = |t: &[[u32; 2]]| t.iter().filter(|r| r[1] > r[0]).count();
         eprintln!(
