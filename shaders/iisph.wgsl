@@ -14,6 +14,10 @@
 //
 // Reductions use a fixed tree (no atomics), so a run is reproducible on the
 // same device.
+//
+// Prepended: common_grid.wgsl (WG, RANGES, linear_index) and
+// common_kernel.wgsl (grad_over_r, harmonic_volumes, pair_gradient; they
+// read P.support, P.inv_support, P.kernel_l).
 
 struct IisphParams {
     n_fluid: u32,
@@ -40,9 +44,6 @@ struct Status {
     pad: u32,
 }
 
-// Cells around a query row: 27 (start, end) ranges, empty ones (0, 0).
-const RANGES: u32 = 27u;
-const WG: u32 = 64u;
 // Reduction: 256 threads x 4 consecutive values per workgroup.
 const RED_WG: u32 = 256u;
 const RED_PER_THREAD: u32 = 4u;
@@ -80,36 +81,6 @@ const MIN_DIAG: f32 = 1.17549435e-38;
 @group(0) @binding(17) var<storage, read_write> status: Status;
 
 var<workgroup> scratch: array<f32, RED_WG>;
-
-// W'(r)/r of the cubic spline, 1/m^5 (cubic_spline.rs grad_over_r).
-fn grad_over_r(r: f32) -> f32 {
-    let q = r * P.inv_support;
-    let inner = P.kernel_l * (3.0 * q - 2.0) * P.inv_support;
-    let om = max(1.0 - q, 0.0);
-    let outer = -P.kernel_l * om * om / max(r, 0.5 * P.support);
-    return select(outer, inner, q <= 0.5);
-}
-
-// Harmonic pair volume Vbar_ij = 2 V_i V_j / (V_i + V_j), 0 if V_i V_j = 0.
-fn harmonic_volumes(vi: f32, vj: f32) -> f32 {
-    let prod = vi * vj;
-    return select(0.0, 2.0 * prod / (vi + vj), prod > 0.0);
-}
-
-// g_ij = Vbar_ij grad W(x_i - x_j), or 0 outside the support.
-fn pair_gradient(xi: vec3<f32>, xj: vec3<f32>, vi: f32, vj: f32) -> vec3<f32> {
-    let d = xi - xj;
-    let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    if (r2 >= P.support * P.support) {
-        return vec3<f32>(0.0);
-    }
-    return (grad_over_r(sqrt(r2)) * d) * harmonic_volumes(vi, vj);
-}
-
-// Linear invocation index of a 2D dispatch of WG-wide workgroups.
-fn linear_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
-    return gid.y * nwg.x * WG + gid.x;
-}
 
 // a^p_f = -(V_f/m_f) sum_j Vbar (p_f + p_j) grad W over fluid and wall
 // neighbours (P-Eq. 27, factor 2 restored).

@@ -7,6 +7,8 @@
 // of a bitonic sort of (key, index) over the next power of two (padding
 // sorts last). Keys are unique with the index, so the order is the one the
 // CPU's sort gives, bit for bit. Integer work only: no rounding differs.
+//
+// Prepended: common_grid.wgsl (WG, linear_index, cell_coord, morton).
 
 struct NeighborParams {
     n: u32,
@@ -21,49 +23,11 @@ struct NeighborParams {
     pad2: u32,
 }
 
-const WG: u32 = 64u;
-// grid.rs: cells are floor(x / H) + ORIGIN, clamped to 21 bits.
-const ORIGIN: f32 = 1048576.0;
-const MAX_COORD: f32 = 2097151.0;
-
 @group(0) @binding(0) var<uniform> P: NeighborParams;
 // Positions x, y, z (m); w unused.
 @group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
 // (key hi, key lo, index, 0).
 @group(0) @binding(2) var<storage, read_write> keys: array<vec4<u32>>;
-
-fn linear_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
-    return gid.y * nwg.x * WG + gid.x;
-}
-
-// Integer cell coordinate of one axis (grid.rs cell_of): non-finite -> the
-// origin cell, clamped to [0, 2^21 - 1].
-fn cell_coord(v: f32) -> u32 {
-    let f = floor(v * P.inv_cell);
-    if (!(abs(f) <= 3.0e38)) {
-        return u32(ORIGIN);
-    }
-    return u32(clamp(f + ORIGIN, 0.0, MAX_COORD));
-}
-
-// Morton key of cell coordinates (grid.rs morton): bit b of axis a goes to
-// bit 3 b + a of the 63-bit key, returned as (hi, lo).
-fn morton(c: vec3<u32>) -> vec2<u32> {
-    var hi = 0u;
-    var lo = 0u;
-    for (var b = 0u; b < 21u; b++) {
-        for (var a = 0u; a < 3u; a++) {
-            let bit = (c[a] >> b) & 1u;
-            let p = 3u * b + a;
-            if (p < 32u) {
-                lo |= bit << p;
-            } else {
-                hi |= bit << (p - 32u);
-            }
-        }
-    }
-    return vec2<u32>(hi, lo);
-}
 
 @compute @workgroup_size(64)
 fn compute_keys(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -76,7 +40,7 @@ fn compute_keys(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         return;
     }
     let x = pos[i];
-    let k = morton(vec3<u32>(cell_coord(x.x), cell_coord(x.y), cell_coord(x.z)));
+    let k = morton(vec3<u32>(cell_coord(x.x, P.inv_cell), cell_coord(x.y, P.inv_cell), cell_coord(x.z, P.inv_cell)));
     keys[i] = vec4<u32>(k.x, k.y, i, 0u);
 }
 

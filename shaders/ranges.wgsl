@@ -7,7 +7,12 @@
 // hash table, the GPU by binary search in the sorted keys: both find the
 // same cell or none, so the tables are bitwise equal. Integer work only,
 // except cell_of of the walls (the same f32 operations as grid.rs, as in
-// shaders/neighbors.wgsl).
+// shaders/neighbors.wgsl). fluid_rows also writes cell_row, each fluid
+// particle's row (its cell; the fluid is sorted by cell). The tables stay on
+// the device: the passes (iisph.wgsl, drift.wgsl) bind these buffers.
+//
+// Prepended: common_grid.wgsl (WG, RANGES, MAX_CELL, linear_index,
+// cell_coord, morton).
 
 struct RangesParams {
     // Rows: fluid cells (fluid_rows) or active walls (wall_rows).
@@ -17,12 +22,6 @@ struct RangesParams {
     // 1 / cell size, 1/m (the grid's inv_cell).
     inv_cell: f32,
 }
-
-const WG: u32 = 64u;
-const RANGES: u32 = 27u;
-const ORIGIN: f32 = 1048576.0;
-const MAX_COORD: f32 = 2097151.0;
-const MAX_CELL: u32 = 2097151u;
 
 @group(0) @binding(0) var<uniform> P: RangesParams;
 // Occupied cells' keys (hi, lo), ascending, and their starts (cells + 1).
@@ -37,37 +36,8 @@ const MAX_CELL: u32 = 2097151u;
 @group(0) @binding(7) var<storage, read_write> ff: array<vec2<u32>>;
 @group(0) @binding(8) var<storage, read_write> fb: array<vec2<u32>>;
 @group(0) @binding(9) var<storage, read_write> bf: array<vec2<u32>>;
-
-fn linear_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
-    return gid.y * nwg.x * WG + gid.x;
-}
-
-// grid.rs cell_of, one axis (as shaders/neighbors.wgsl cell_coord).
-fn cell_coord(v: f32) -> u32 {
-    let f = floor(v * P.inv_cell);
-    if (!(abs(f) <= 3.0e38)) {
-        return u32(ORIGIN);
-    }
-    return u32(clamp(f + ORIGIN, 0.0, MAX_COORD));
-}
-
-// grid.rs morton: bit b of axis a to bit 3 b + a, as (hi, lo).
-fn morton(c: vec3<u32>) -> vec2<u32> {
-    var hi = 0u;
-    var lo = 0u;
-    for (var b = 0u; b < 21u; b++) {
-        for (var a = 0u; a < 3u; a++) {
-            let bit = (c[a] >> b) & 1u;
-            let p = 3u * b + a;
-            if (p < 32u) {
-                lo |= bit << p;
-            } else {
-                hi |= bit << (p - 32u);
-            }
-        }
-    }
-    return vec2<u32>(hi, lo);
-}
+// Per fluid particle: its cell, the row of ff / fb.
+@group(0) @binding(10) var<storage, read_write> cell_row: array<u32>;
 
 // grid.rs unmorton.
 fn unmorton(k: vec2<u32>) -> vec3<u32> {
@@ -150,7 +120,7 @@ fn neighbor_ranges(t: u32, c: vec3<u32>) -> array<vec2<u32>, 27> {
 }
 
 // ranges.rs fluid_rows: row c of ff / fb holds the fluid / wall ranges
-// around fluid cell c.
+// around fluid cell c, and cell_row of the particles of cell c is c.
 @compute @workgroup_size(64)
 fn fluid_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let c = linear_index(gid, nwg);
@@ -164,6 +134,9 @@ fn fluid_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         ff[c * RANGES + k] = f[k];
         fb[c * RANGES + k] = b[k];
     }
+    for (var i = fluid_starts[c]; i < fluid_starts[c + 1u]; i++) {
+        cell_row[i] = c;
+    }
 }
 
 // ranges.rs wall_rows: row k of bf holds the fluid ranges around the cell
@@ -175,7 +148,7 @@ fn wall_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
         return;
     }
     let x = wall_pos[active_walls[k]];
-    let cell = vec3<u32>(cell_coord(x.x), cell_coord(x.y), cell_coord(x.z));
+    let cell = vec3<u32>(cell_coord(x.x, P.inv_cell), cell_coord(x.y, P.inv_cell), cell_coord(x.z, P.inv_cell));
     let f = neighbor_ranges(0u, cell);
     for (var q = 0u; q < RANGES; q++) {
         bf[k * RANGES + q] = f[q];

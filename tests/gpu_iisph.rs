@@ -21,7 +21,7 @@
 
 mod gpu_common;
 
-use porosph::backend::gpu::{IisphGpu, SolveInput, SolveOutput, SolveSettings};
+use porosph::backend::gpu::{GpuContext, IisphGpu, RangesGpu, SolveInput, SolveOutput, SolveSettings, WallInput};
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::grid::CellGrid;
@@ -242,7 +242,19 @@ fn cpu_solve(c: &Case, s: SolveSettings) -> Solved {
     Solved { p, ap, p_wall, iterations: it, error: e }
 }
 
-fn gpu_solve(gpu: &mut IisphGpu, ctx: &porosph::backend::gpu::GpuContext, c: &Case, s: SolveSettings) -> Solved {
+/// The GPU loop and the cell-range tables it binds.
+struct Gpu {
+    iisph: IisphGpu,
+    ranges: RangesGpu,
+}
+
+impl Gpu {
+    fn new(ctx: &GpuContext) -> Self {
+        Self { iisph: IisphGpu::new(ctx), ranges: RangesGpu::new(ctx) }
+    }
+}
+
+fn gpu_solve(gpu: &mut Gpu, ctx: &GpuContext, c: &Case, s: SolveSettings) -> Solved {
     let n = c.p0.len();
     let mut p = c.p0.clone();
     let mut p_wall = c.p_wall0.clone();
@@ -263,7 +275,9 @@ fn gpu_solve(gpu: &mut IisphGpu, ctx: &porosph::backend::gpu::GpuContext, c: &Ca
     };
     let [x, y, z] = &mut ap;
     let out = SolveOutput { p: &mut p, p_wall: &mut p_wall, ap: VelMut { x, y, z } };
-    let r = gpu.solve(ctx, &inp, out).unwrap_or_else(|e| panic!("{e}"));
+    let walls = WallInput { grid: inp.wall_grid, walls: inp.walls, active: inp.active };
+    gpu.ranges.ensure(ctx, inp.fluid_grid, Some(walls)).unwrap_or_else(|e| panic!("{e}"));
+    let r = gpu.iisph.solve(ctx, &gpu.ranges, &inp, out).unwrap_or_else(|e| panic!("{e}"));
     Solved { p, ap, p_wall, iterations: r.iterations, error: r.density_error }
 }
 
@@ -280,7 +294,7 @@ fn gpu_jacobi_loop_matches_cpu_pass_on_100k_random_particles() {
     let c = case(50, 40, 50, 7);
     assert_eq!(c.p0.len(), 100_000);
     assert!(c.active.len() > 1000, "the floor takes part: {} active walls", c.active.len());
-    let mut gpu = IisphGpu::new(&ctx);
+    let mut gpu = Gpu::new(&ctx);
     // Ten iterations exactly, so both run the same sweeps.
     let s = settings(&c, 10, 10, 0.0);
     let cpu = cpu_solve(&c, s);
@@ -319,9 +333,9 @@ fn gpu_jacobi_loop_is_reproducible_run_to_run() {
     let Some(ctx) = gpu_common::context() else { return };
     let c = case(30, 20, 30, 11);
     let s = settings(&c, 2, 100, 1e-3);
-    let mut gpu = IisphGpu::new(&ctx);
+    let mut gpu = Gpu::new(&ctx);
     let a = gpu_solve(&mut gpu, &ctx, &c, s);
-    let b = gpu_solve(&mut IisphGpu::new(&ctx), &ctx, &c, s);
+    let b = gpu_solve(&mut Gpu::new(&ctx), &ctx, &c, s);
     let c2 = gpu_solve(&mut gpu, &ctx, &c, s);
     for r in [&b, &c2] {
         assert_eq!(a.iterations, r.iterations);

@@ -1,8 +1,9 @@
 //! Pass 10 on the GPU: the drift velocities of the mixture model
 //! (`shaders/drift.wgsl`, the twin of `kernels/src/drift.rs`; PHYSICS.md
 //! §4.1). Per step the host uploads positions and current volumes, the
-//! fractions, p / alpha_f (fraction pressures only), a = -(a^visc + a^p)
-//! and the fluid cell-range tables; three dispatches (phase_velocity,
+//! fractions, p / alpha_f (fraction pressures only) and a = -(a^visc + a^p);
+//! the fluid cell-range tables are bound from [`RangesGpu`] (built on the
+//! device, shared with the pressure solve); three dispatches (phase_velocity,
 //! mixture_velocity, drift_velocity) run on the device, and the drift
 //! velocities u_mk and phase fluxes F_k are read back. With porous solids
 //! the same three dispatches run a second time in the step for the inner
@@ -10,7 +11,8 @@
 //! inner fractions and q_k,f are uploaded for it.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
-use super::{ranges, GpuContext, GpuError};
+use super::ranges::RangesGpu;
+use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::Vel;
@@ -116,6 +118,9 @@ const NAMES: [&str; 12] =
     ["pos", "alpha", "alpha_f", "pf", "acc", "cell_row", "ff_ranges", "v", "w", "s", "m", "extra"];
 const ALPHA: usize = 1;
 const ALPHA_F: usize = 2;
+// Bound from the cell-range tables (their own slots stay unused).
+const CELL_ROW: usize = 5;
+const FF: usize = 6;
 const V: usize = 7;
 const W: usize = 8;
 const EXTRA: usize = 11;
@@ -132,19 +137,17 @@ pub struct DriftGpu {
     pipelines: Vec<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
+    /// The [`RangesGpu::version`] the bind group was made with.
+    tables_version: Option<u64>,
     params: wgpu::Buffer,
     bufs: Vec<GpuArray>,
     /// u_mk, F_k of the outer pass, then of the inner pass.
     reads: [GpuArray; 4],
     queries: Option<(wgpu::QuerySet, GpuArray, GpuArray)>,
-    no_walls: CellGrid,
     pos: Vec<[f32; 4]>,
     alpha: Vec<f32>,
     extra: Vec<[f32; 4]>,
     acc: Vec<[f32; 4]>,
-    cell_row: Vec<u32>,
-    ff: Vec<[u32; 2]>,
-    fb: Vec<[u32; 2]>,
 }
 
 impl DriftGpu {
@@ -157,18 +160,15 @@ impl DriftGpu {
             pipelines,
             layout,
             bind_group: None,
+            tables_version: None,
             params,
             bufs: NAMES.iter().map(|n| GpuArray::new(ctx, n, STORAGE)).collect(),
             reads: ["read u", "read F", "read inner u", "read inner F"].map(|l| GpuArray::new(ctx, l, READBACK)),
             queries,
-            no_walls: CellGrid::default(),
             pos: Vec::new(),
             alpha: Vec::new(),
             extra: Vec::new(),
             acc: Vec::new(),
-            cell_row: Vec::new(),
-            ff: Vec::new(),
-            fb: Vec::new(),
         }
     }
 
@@ -177,10 +177,12 @@ impl DriftGpu {
     /// writes u_mk and F_k, and with `inp.porous` the inner drift
     /// velocities and fluxes of P-Eq. 12 into `inner` (which must then be
     /// given); returns the device time of both, ms, where the adapter has
-    /// timestamps.
+    /// timestamps. `tables` must hold the fluid tables of `inp.fluid_grid`
+    /// ([`RangesGpu::ensure`]; `GpuBackend::drift` does that).
     pub fn run(
         &mut self,
         ctx: &GpuContext,
+        tables: &RangesGpu,
         inp: &DriftInput,
         out: DriftOutput,
         inner: Option<DriftOutput>,
@@ -197,8 +199,14 @@ impl DriftGpu {
             return Ok(Some(0.0));
         }
 
+        if tables.n_fluid() != n {
+            return Err(GpuError(format!(
+                "the cell-range tables on the GPU have {} particles, not {n}",
+                tables.n_fluid()
+            )));
+        }
+
         // Host staging.
-        ranges::fluid_rows(inp.fluid_grid, &self.no_walls, &mut self.cell_row, &mut self.ff, &mut self.fb);
         let f = inp.fluid;
         self.pos.clear();
         self.pos.extend((0..n).map(|i| [f.x[i], f.y[i], f.z[i], inp.vol[i]]));
@@ -217,8 +225,8 @@ impl DriftGpu {
             4 * n64,
             if inp.p_per_fraction.is_some() { 4 * n64 } else { 4 },
             16 * n64,
-            4 * n64,
-            8 * self.ff.len() as u64,
+            0,
+            0,
             16 * n64 * np64,
             16 * n64 * np64,
             16 * n64,
@@ -233,14 +241,17 @@ impl DriftGpu {
         for r in &mut self.reads[..2 * passes] {
             r.reserve(ctx, sizes[V], false)?;
         }
-        if replaced || self.bind_group.is_none() {
+        if replaced || self.bind_group.is_none() || self.tables_version != Some(tables.version()) {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
-            entries.extend(
-                self.bufs
-                    .iter()
-                    .enumerate()
-                    .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.buf.as_entire_binding() }),
-            );
+            entries.extend(self.bufs.iter().enumerate().map(|(k, b)| {
+                let buf = match k {
+                    CELL_ROW => tables.cell_row(),
+                    FF => tables.ff(),
+                    _ => &b.buf,
+                };
+                wgpu::BindGroupEntry { binding: k as u32 + 1, resource: buf.as_entire_binding() }
+            }));
+            self.tables_version = Some(tables.version());
             self.bind_group = Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("drift"),
                 layout: &self.layout,
@@ -276,8 +287,6 @@ impl DriftGpu {
             b[3].upload(ctx, &pf[..n]);
         }
         b[4].upload(ctx, &self.acc);
-        b[5].upload(ctx, &self.cell_row);
-        b[6].upload(ctx, &self.ff);
         if inp.porous.is_some() {
             b[EXTRA].upload(ctx, &self.extra);
         }

@@ -3,17 +3,20 @@
 //! `kernels/src/iisph.rs`; PHYSICS.md §2.2-2.4).
 //!
 //! Per step the host uploads what the loop reads (positions and volumes,
-//! V/m, the warm-started pressures, the rows S and a_ii, the cell-range
-//! tables; wall positions only once), then every iteration runs on the
-//! device: a^p, the fluid and wall Jacobi updates, and the mean error in a
-//! fixed reduction tree that also decides convergence. The host queues
+//! V/m, the warm-started pressures, the rows S and a_ii), and the loop
+//! binds the cell-range tables, wall positions and active walls that
+//! [`RangesGpu`] built on the device for this step's grids (no upload of
+//! its own); then every iteration runs on the device: a^p, the fluid and
+//! wall Jacobi updates, and the mean error in a fixed reduction tree that
+//! also decides convergence. The host queues
 //! [`ITERATIONS_PER_SUBMIT`] iterations per submission and reads back only
 //! the 16-byte status between submissions; iterations after convergence
 //! return at once, so the result does not depend on how iterations are
 //! grouped. At the end it reads back p, a^p and the wall pressures.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
-use super::{ranges, GpuContext, GpuError};
+use super::ranges::RangesGpu;
+use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Rows, VelMut};
@@ -85,14 +88,15 @@ pub struct SolveSettings {
 }
 
 /// What the loop reads. The fluid is sorted by the cells of `fluid_grid`,
-/// the walls by those of `wall_grid`.
+/// the walls by those of `wall_grid`; the grids, wall positions and active
+/// walls are what the cell-range tables ([`RangesGpu::ensure`]) are built
+/// from: the loop itself reads them from the tables on the device.
 pub struct SolveInput<'a> {
     /// Kernel support H, m.
     pub support: f32,
     pub fluid_grid: &'a CellGrid,
     pub wall_grid: &'a CellGrid,
     pub fluid: Points<'a>,
-    /// Wall positions (static: uploaded on the first solve only).
     pub walls: Points<'a>,
     /// Fluid current volume V and V/m.
     pub vol: &'a [f32],
@@ -146,40 +150,48 @@ const PAF: usize = 5;
 /// Storage bindings 1..=17 of the shader: whether each is read-only.
 const READ_ONLY: [bool; 17] =
     [true, true, false, false, true, false, true, true, true, true, true, false, true, true, true, false, false];
-// Index into `bufs` (binding - 1).
+// The loop's own buffers (index into `bufs`).
 const POS: usize = 0;
 const VM: usize = 1;
 const P: usize = 2;
 const AP: usize = 3;
 const ROWS: usize = 4;
-const CELL_ROW: usize = 6;
-const FF: usize = 7;
-const FB: usize = 8;
-const WALL_POS: usize = 9;
-const WALL_VOL: usize = 10;
-const P_WALL: usize = 11;
-const ACTIVE: usize = 12;
-const WALL_ROWS: usize = 13;
-const BF: usize = 14;
-const STATUS: usize = 16;
-const NAMES: [&str; 17] = [
-    "pos",
-    "vm",
-    "p",
-    "ap",
-    "rows",
-    "err",
-    "cell_row",
-    "ff_ranges",
-    "fb_ranges",
-    "wall_pos",
-    "wall_vol",
-    "p_wall",
-    "active",
-    "wall_rows",
-    "bf_ranges",
-    "partials",
-    "status",
+const ERR: usize = 5;
+const WALL_VOL: usize = 6;
+const P_WALL: usize = 7;
+const WALL_ROWS: usize = 8;
+const PARTIALS: usize = 9;
+const STATUS: usize = 10;
+const NAMES: [&str; 11] =
+    ["pos", "vm", "p", "ap", "rows", "err", "wall_vol", "p_wall", "wall_rows", "partials", "status"];
+
+/// Where a storage binding's buffer comes from: the loop's own, or the
+/// cell-range tables (shared with the other passes).
+#[derive(Clone, Copy)]
+enum Source {
+    Own(usize),
+    Tables(fn(&RangesGpu) -> &wgpu::Buffer),
+}
+
+/// Storage bindings 1..=17 of the shader.
+const BINDINGS: [Source; 17] = [
+    Source::Own(POS),
+    Source::Own(VM),
+    Source::Own(P),
+    Source::Own(AP),
+    Source::Own(ROWS),
+    Source::Own(ERR),
+    Source::Tables(RangesGpu::cell_row),
+    Source::Tables(RangesGpu::ff),
+    Source::Tables(RangesGpu::fb),
+    Source::Tables(RangesGpu::wall_pos),
+    Source::Own(WALL_VOL),
+    Source::Own(P_WALL),
+    Source::Tables(RangesGpu::active),
+    Source::Own(WALL_ROWS),
+    Source::Tables(RangesGpu::bf),
+    Source::Own(PARTIALS),
+    Source::Own(STATUS),
 ];
 
 /// Workgroup size of the gather entry points and span of one partial sum.
@@ -198,6 +210,8 @@ pub struct IisphGpu {
     pipelines: Vec<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
+    /// The [`RangesGpu::version`] the bind group was made with.
+    tables_version: Option<u64>,
     params: wgpu::Buffer,
     bufs: Vec<GpuArray>,
     read_p: GpuArray,
@@ -205,16 +219,10 @@ pub struct IisphGpu {
     read_p_wall: GpuArray,
     read_status: GpuArray,
     queries: Option<(wgpu::QuerySet, GpuArray, GpuArray)>,
-    walls_uploaded: Option<usize>,
     // Host staging, reused.
     pos: Vec<[f32; 4]>,
     rows: Vec<[f32; 2]>,
     wall_rows: Vec<[f32; 2]>,
-    wall_pos: Vec<[f32; 4]>,
-    cell_row: Vec<u32>,
-    ff: Vec<[u32; 2]>,
-    fb: Vec<[u32; 2]>,
-    bf: Vec<[u32; 2]>,
 }
 
 /// Most submissions one solve may take (`max_iterations` up to 1000) + the final pass.
@@ -230,6 +238,7 @@ impl IisphGpu {
             pipelines,
             layout,
             bind_group: None,
+            tables_version: None,
             params,
             bufs: NAMES.iter().map(|n| GpuArray::new(ctx, n, STORAGE)).collect(),
             read_p: GpuArray::new(ctx, "read p", READBACK),
@@ -237,15 +246,9 @@ impl IisphGpu {
             read_p_wall: GpuArray::new(ctx, "read p_wall", READBACK),
             read_status: GpuArray::new(ctx, "read status", READBACK),
             queries,
-            walls_uploaded: None,
             pos: Vec::new(),
             rows: Vec::new(),
             wall_rows: Vec::new(),
-            wall_pos: Vec::new(),
-            cell_row: Vec::new(),
-            ff: Vec::new(),
-            fb: Vec::new(),
-            bf: Vec::new(),
         }
     }
 
@@ -253,7 +256,16 @@ impl IisphGpu {
     /// predicted density error is at most the target (after at least
     /// `min_iterations`) or `max_iterations`, then computes a^p from the
     /// final pressures. The same loop as the CPU pass in `pipeline::step`.
-    pub fn solve(&mut self, ctx: &GpuContext, inp: &SolveInput, out: SolveOutput) -> Result<SolveReport, GpuError> {
+    /// `tables` must hold the tables of `inp` with its walls
+    /// ([`RangesGpu::ensure`] with `inp`'s grids, walls and active walls;
+    /// `GpuBackend::pressure_solve` does that).
+    pub fn solve(
+        &mut self,
+        ctx: &GpuContext,
+        tables: &RangesGpu,
+        inp: &SolveInput,
+        out: SolveOutput,
+    ) -> Result<SolveReport, GpuError> {
         let n = inp.fluid.len();
         let na = inp.active.len();
         let nw = inp.walls.len();
@@ -263,9 +275,16 @@ impl IisphGpu {
             return Ok(SolveReport { iterations: s.min_iterations.max(1), ..Default::default() });
         }
 
-        // Host staging: packed particle data and the cell-range tables.
-        ranges::fluid_rows(inp.fluid_grid, inp.wall_grid, &mut self.cell_row, &mut self.ff, &mut self.fb);
-        ranges::wall_rows(inp.walls, inp.active, inp.fluid_grid, &mut self.bf);
+        if tables.n_fluid() != n || tables.walls() != Some((nw, na)) {
+            return Err(GpuError(format!(
+                "the cell-range tables on the GPU are not those of the solve ({} fluid particles, walls {:?}; \
+                 the solve has {n}, ({nw}, {na}))",
+                tables.n_fluid(),
+                tables.walls()
+            )));
+        }
+
+        // Host staging: packed particle data.
         let f = inp.fluid;
         self.pos.clear();
         self.pos.extend((0..n).map(|i| [f.x[i], f.y[i], f.z[i], inp.vol[i]]));
@@ -277,25 +296,8 @@ impl IisphGpu {
         // Room on the device; a replaced buffer means a new bind group.
         let (n64, na64, nw64) = (n as u64, na as u64, nw as u64);
         let parts = u64::from((n as u32).div_ceil(RED_SPAN));
-        let sizes: [u64; 17] = [
-            16 * n64,
-            4 * n64,
-            4 * n64,
-            16 * n64,
-            8 * n64,
-            4 * n64,
-            4 * n64,
-            8 * self.ff.len() as u64,
-            8 * self.fb.len() as u64,
-            16 * nw64,
-            4 * nw64,
-            4 * nw64,
-            4 * na64,
-            8 * na64,
-            8 * self.bf.len() as u64,
-            4 * parts,
-            16,
-        ];
+        let sizes: [u64; 11] =
+            [16 * n64, 4 * n64, 4 * n64, 16 * n64, 8 * n64, 4 * n64, 4 * nw64, 4 * nw64, 8 * na64, 4 * parts, 16];
         let mut replaced = false;
         for (b, &bytes) in self.bufs.iter_mut().zip(&sizes) {
             replaced |= b.reserve(ctx, bytes, true)?;
@@ -304,14 +306,16 @@ impl IisphGpu {
         self.read_ap.reserve(ctx, sizes[AP], false)?;
         self.read_p_wall.reserve(ctx, sizes[P_WALL], false)?;
         self.read_status.reserve(ctx, 16, false)?;
-        if replaced || self.bind_group.is_none() {
+        if replaced || self.bind_group.is_none() || self.tables_version != Some(tables.version()) {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
-            entries.extend(
-                self.bufs
-                    .iter()
-                    .enumerate()
-                    .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32 + 1, resource: b.buf.as_entire_binding() }),
-            );
+            entries.extend(BINDINGS.iter().enumerate().map(|(k, src)| {
+                let buf = match *src {
+                    Source::Own(b) => &self.bufs[b].buf,
+                    Source::Tables(table) => table(tables),
+                };
+                wgpu::BindGroupEntry { binding: k as u32 + 1, resource: buf.as_entire_binding() }
+            }));
+            self.tables_version = Some(tables.version());
             self.bind_group = Some(ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("iisph"),
                 layout: &self.layout,
@@ -319,7 +323,8 @@ impl IisphGpu {
             }));
         }
 
-        // Uploads: once per step, only what the loop reads.
+        // Uploads: once per step, only what the loop reads (the tables,
+        // wall positions and active walls are on the device already).
         let params = IisphParams::new(inp.support, s, n, na);
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let b = &self.bufs;
@@ -327,21 +332,9 @@ impl IisphGpu {
         b[VM].upload(ctx, inp.vm);
         b[P].upload(ctx, out.p);
         b[ROWS].upload(ctx, &self.rows);
-        b[CELL_ROW].upload(ctx, &self.cell_row);
-        b[FF].upload(ctx, &self.ff);
-        b[FB].upload(ctx, &self.fb);
-        if replaced || self.walls_uploaded != Some(nw) {
-            let w = inp.walls;
-            self.wall_pos.clear();
-            self.wall_pos.extend((0..nw).map(|i| [w.x[i], w.y[i], w.z[i], 0.0]));
-            b[WALL_POS].upload(ctx, &self.wall_pos);
-            self.walls_uploaded = Some(nw);
-        }
         b[WALL_VOL].upload(ctx, inp.vol_wall);
         b[P_WALL].upload(ctx, out.p_wall);
-        b[ACTIVE].upload(ctx, inp.active);
         b[WALL_ROWS].upload(ctx, &self.wall_rows);
-        b[BF].upload(ctx, &self.bf);
         b[STATUS].upload(ctx, &[0u32; 4]);
 
         // The loop: ITERATIONS_PER_SUBMIT iterations per submission, then

@@ -14,18 +14,44 @@ mod shader_tests;
 pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams, PorousDriftInput};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
 pub use neighbors::{NeighborParams, NeighborsGpu};
-pub use ranges::{RangesGpu, RangesParams};
+pub use ranges::{RangesGpu, RangesParams, WallInput};
 
 use super::GpuPasses;
 use std::fmt;
 
-/// The WGSL sources, by file name (compiled into the binary).
-pub const SHADERS: [(&str, &str); 4] = [
-    ("drift.wgsl", include_str!("../../../shaders/drift.wgsl")),
-    ("iisph.wgsl", include_str!("../../../shaders/iisph.wgsl")),
-    ("neighbors.wgsl", include_str!("../../../shaders/neighbors.wgsl")),
-    ("ranges.wgsl", include_str!("../../../shaders/ranges.wgsl")),
+/// Shared WGSL (WGSL has no include), by file name: prepended to the
+/// shaders of [`SHADERS`] that list it. `common_grid.wgsl`: WG, RANGES, the
+/// grid constants, `linear_index`, `cell_coord`, `morton`;
+/// `common_kernel.wgsl`: `grad_over_r`, `harmonic_volumes`,
+/// `pair_gradient`, which read the kernel fields of the shader's `P`.
+pub const COMMON: [(&str, &str); 2] = [
+    ("common_grid.wgsl", include_str!("../../../shaders/common_grid.wgsl")),
+    ("common_kernel.wgsl", include_str!("../../../shaders/common_kernel.wgsl")),
 ];
+
+/// The WGSL sources of the passes, by file name (compiled into the binary),
+/// with the [`COMMON`] files prepended to each, in order.
+pub const SHADERS: [(&str, &[&str], &str); 4] = [
+    // Keeps its own copies of the common code for now.
+    ("drift.wgsl", &[], include_str!("../../../shaders/drift.wgsl")),
+    ("iisph.wgsl", &["common_grid.wgsl", "common_kernel.wgsl"], include_str!("../../../shaders/iisph.wgsl")),
+    ("neighbors.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/neighbors.wgsl")),
+    ("ranges.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/ranges.wgsl")),
+];
+
+/// The full source of `shaders/<file>` as compiled: its [`COMMON`] files,
+/// then the file; `None` for a file not in [`SHADERS`].
+pub fn shader_source(file: &str) -> Option<String> {
+    let (_, common, src) = SHADERS.iter().find(|(f, _, _)| *f == file)?;
+    let mut out = String::new();
+    for c in *common {
+        let (_, text) = COMMON.iter().find(|(f, _)| f == c)?;
+        out.push_str(text);
+        out.push('\n');
+    }
+    out.push_str(src);
+    Some(out)
+}
 
 /// Why the GPU backend cannot run.
 #[derive(Clone, Debug, PartialEq)]
@@ -99,9 +125,10 @@ impl GpuContext {
         format!("{} ({:?}, {:?})", self.info.name, self.info.device_type, self.info.backend)
     }
 
-    /// Compiles `shaders/<file>` into a module.
+    /// Compiles `shaders/<file>`, with its common files prepended
+    /// ([`shader_source`]), into a module.
     pub fn shader(&self, file: &str) -> wgpu::ShaderModule {
-        let src = SHADERS.iter().find(|(f, _)| *f == file).map(|(_, s)| *s).unwrap_or_default();
+        let src = shader_source(file).unwrap_or_default();
         self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(file),
             source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -188,19 +215,23 @@ impl GpuContext {
 }
 
 /// The GPU backend of a run: the device, which passes it runs, and the
-/// pipelines and resident buffers of each (built on first use).
+/// pipelines and resident buffers of each (built on first use). The
+/// cell-range tables are shared: the first pass of a step that needs them
+/// builds them on the device for the step's grids, the others bind the
+/// same buffers.
 pub struct GpuBackend {
     pub ctx: GpuContext,
     pub passes: GpuPasses,
     iisph: Option<IisphGpu>,
     neighbors: Option<NeighborsGpu>,
     drift: Option<DriftGpu>,
+    ranges: Option<RangesGpu>,
 }
 
 impl GpuBackend {
     /// Opens the GPU (an error says why there is none).
     pub fn new(passes: GpuPasses) -> Result<Self, GpuError> {
-        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None })
+        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None, ranges: None })
     }
 
     /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
@@ -216,20 +247,33 @@ impl GpuBackend {
     }
 
     /// The IISPH Jacobi loop (pass 5) on the GPU; see [`IisphGpu::solve`].
+    /// Builds the cell-range tables with the walls first where this step's
+    /// are not on the device yet (their device time is in `gpu_ms`).
     pub fn pressure_solve(&mut self, input: &SolveInput, out: SolveOutput) -> Result<SolveReport, GpuError> {
-        let ctx = &self.ctx;
-        self.iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, input, out)
+        let Self { ctx, ranges, iisph, .. } = self;
+        let ranges = ranges.get_or_insert_with(|| RangesGpu::new(ctx));
+        let walls = WallInput { grid: input.wall_grid, walls: input.walls, active: input.active };
+        let ms = ranges.ensure(ctx, input.fluid_grid, Some(walls))?;
+        let mut report = iisph.get_or_insert_with(|| IisphGpu::new(ctx)).solve(ctx, ranges, input, out)?;
+        report.gpu_ms = report.gpu_ms.map(|t| t + ms);
+        Ok(report)
     }
 
     /// The drift velocities (pass 10; with porous solids also the inner
-    /// ones, into `inner`) on the GPU; see [`DriftGpu::run`].
+    /// ones, into `inner`) on the GPU; see [`DriftGpu::run`]. Builds the
+    /// fluid cell-range tables first where this step's are not on the
+    /// device yet (the pressure solve's serve; the device time of a build
+    /// is in the result).
     pub fn drift(
         &mut self,
         input: &DriftInput,
         out: DriftOutput,
         inner: Option<DriftOutput>,
     ) -> Result<Option<f64>, GpuError> {
-        let ctx = &self.ctx;
-        self.drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, input, out, inner)
+        let Self { ctx, ranges, drift, .. } = self;
+        let ranges = ranges.get_or_insert_with(|| RangesGpu::new(ctx));
+        let ms = ranges.ensure(ctx, input.fluid_grid, None)?;
+        let t = drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, ranges, input, out, inner)?;
+        Ok(t.map(|t| t + ms))
     }
 }

@@ -7,8 +7,10 @@
 //! CPU neighbour search stores as pairs.
 //!
 //! [`RangesGpu`] builds the same tables on the GPU (`shaders/ranges.wgsl`),
-//! bitwise equal (`tests/gpu_ranges.rs`); the GPU passes do not use it yet
-//! (they upload the tables built here on the CPU).
+//! bitwise equal (`tests/gpu_ranges.rs`), into device buffers that the GPU
+//! passes (`IisphGpu`, `DriftGpu`) bind: one build per step, shared by the
+//! passes, no read-back. [`fluid_rows`] and [`wall_rows`] here are the CPU
+//! reference the tests compare against.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::{GpuContext, GpuError};
@@ -77,11 +79,33 @@ pub struct RangesParams {
     pub inv_cell: f32,
 }
 
+/// The walls of the tables: their grid (the walls sorted by its cells),
+/// positions, and the active walls (ascending), whose rows make `bf`.
+#[derive(Clone, Copy)]
+pub struct WallInput<'a> {
+    pub grid: &'a CellGrid,
+    pub walls: Points<'a>,
+    pub active: &'a [u32],
+}
+
 const ENTRY_POINTS: [&str; 2] = ["fluid_rows", "wall_rows"];
-const NAMES: [&str; 9] =
-    ["fluid_cells", "fluid_starts", "wall_cells", "wall_starts", "wall_pos", "active", "ff", "fb", "bf"];
-/// Storage bindings 1..=9: whether each is read-only.
-const READ_ONLY: [bool; 9] = [true, true, true, true, true, true, false, false, false];
+const NAMES: [&str; 10] =
+    ["fluid_cells", "fluid_starts", "wall_cells", "wall_starts", "wall_pos", "active", "ff", "fb", "bf", "cell_row"];
+/// Storage bindings 1..=10: whether each is read-only.
+const READ_ONLY: [bool; 10] = [true, true, true, true, true, true, false, false, false, false];
+// Index into `bufs` (binding - 1).
+const FLUID_CELLS: usize = 0;
+const FLUID_STARTS: usize = 1;
+const WALL_CELLS: usize = 2;
+const WALL_STARTS: usize = 3;
+const WALL_POS: usize = 4;
+const ACTIVE: usize = 5;
+const FF: usize = 6;
+const FB: usize = 7;
+const BF: usize = 8;
+const CELL_ROW: usize = 9;
+/// The buffers the passes bind: a replaced one bumps [`RangesGpu::version`].
+const SHARED: [usize; 6] = [WALL_POS, ACTIVE, FF, FB, BF, CELL_ROW];
 const WG: u32 = 64;
 
 fn dims(groups: u32) -> (u32, u32) {
@@ -89,17 +113,44 @@ fn dims(groups: u32) -> (u32, u32) {
     (x, groups.div_ceil(x.max(1)))
 }
 
-/// The cell-range tables built on the GPU (`shaders/ranges.wgsl`), bitwise
-/// those of [`fluid_rows`] and [`wall_rows`].
+/// Makes `dst` a copy of `src`; true if it was not one already.
+fn stage<T: PartialEq>(dst: &mut Vec<T>, src: impl ExactSizeIterator<Item = T> + Clone) -> bool {
+    if dst.len() == src.len() && dst.iter().zip(src.clone()).all(|(a, b)| *a == b) {
+        return false;
+    }
+    dst.clear();
+    dst.extend(src);
+    true
+}
+
+/// The cell-range tables of the current grids on the GPU
+/// (`shaders/ranges.wgsl`), bitwise those of [`fluid_rows`] and
+/// [`wall_rows`], in device buffers the passes bind (`cell_row`, `ff`,
+/// `fb`, `bf`, with the wall positions and active walls they were built
+/// from). [`RangesGpu::ensure`] rebuilds them only when its input differs
+/// from that of the last build (host copies of the grids are kept for
+/// that comparison and for the upload), so the passes of a step share one
+/// build, and the static wall grid and wall positions are uploaded once.
 pub struct RangesGpu {
     pipelines: Vec<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
     bind_group: Option<wgpu::BindGroup>,
     params: wgpu::Buffer,
     bufs: Vec<GpuArray>,
-    reads: Vec<GpuArray>,
-    keys: [Vec<[u32; 2]>; 2],
+    queries: Option<(wgpu::QuerySet, GpuArray, GpuArray)>,
+    version: u64,
+    builds: u64,
+    /// Tables on the device: None (none yet), Some(false) fluid rows only
+    /// (no walls: `fb` empty, no `bf`), Some(true) with the walls.
+    built: Option<bool>,
+    // What the tables were built from (host copies, also the upload staging).
+    inv_cell: f32,
+    fluid_keys: Vec<[u32; 2]>,
+    fluid_starts: Vec<u32>,
+    wall_keys: Vec<[u32; 2]>,
+    wall_starts: Vec<u32>,
     wall_pos: Vec<[f32; 4]>,
+    active: Vec<u32>,
 }
 
 impl RangesGpu {
@@ -113,54 +164,86 @@ impl RangesGpu {
             bind_group: None,
             params,
             bufs: NAMES.iter().map(|n| GpuArray::new(ctx, n, STORAGE)).collect(),
-            reads: ["read ff", "read fb", "read bf"].iter().map(|n| GpuArray::new(ctx, n, READBACK)).collect(),
-            keys: [Vec::new(), Vec::new()],
+            queries: ctx.timestamp_queries("ranges timestamps", "ranges timestamps read", 2),
+            version: 0,
+            builds: 0,
+            built: None,
+            inv_cell: 0.0,
+            fluid_keys: Vec::new(),
+            fluid_starts: Vec::new(),
+            wall_keys: Vec::new(),
+            wall_starts: Vec::new(),
             wall_pos: Vec::new(),
+            active: Vec::new(),
         }
     }
 
-    /// Builds the tables of [`fluid_rows`] (`ff`, `fb`; one row per fluid
-    /// cell) and [`wall_rows`] (`bf`; one row per active wall) on the GPU
-    /// and reads them back.
-    #[allow(clippy::too_many_arguments)]
-    pub fn build(
+    /// Makes the tables on the device those of `fluid_grid` and, with
+    /// `walls`, of the walls: builds them (`fluid_rows`: `cell_row`, `ff`,
+    /// `fb`; `wall_rows`: `bf`) unless the last build had the same input
+    /// (tables with walls also serve a pass that asks for none). Uploads
+    /// only what changed (the fluid grid, once per step; the walls' grid
+    /// and positions when they change, i.e. once; the active walls). No
+    /// read-back but the timestamps: returns the device time of the build,
+    /// ms, 0 where nothing was built or the adapter has no timestamps.
+    pub fn ensure(
         &mut self,
         ctx: &GpuContext,
         fluid_grid: &CellGrid,
-        wall_grid: &CellGrid,
-        walls: Points,
-        active: &[u32],
-        ff: &mut Vec<[u32; 2]>,
-        fb: &mut Vec<[u32; 2]>,
-        bf: &mut Vec<[u32; 2]>,
-    ) -> Result<(), GpuError> {
-        let (nf, nw, na) = (fluid_grid.len(), wall_grid.len(), active.len());
-        for (keys, grid) in self.keys.iter_mut().zip([fluid_grid, wall_grid]) {
-            keys.clear();
-            keys.extend(grid.cells.iter().map(|&k| [(k >> 32) as u32, k as u32]));
+        walls: Option<WallInput>,
+    ) -> Result<f64, GpuError> {
+        let key = |k: &u64| [(k >> 32) as u32, *k as u32];
+        let mut fluid_new = stage(&mut self.fluid_keys, fluid_grid.cells.iter().map(key));
+        fluid_new |= stage(&mut self.fluid_starts, fluid_grid.starts.iter().copied());
+        fluid_new |= self.inv_cell.to_bits() != fluid_grid.inv_cell.to_bits();
+        self.inv_cell = fluid_grid.inv_cell;
+        let (mut wall_grid_new, mut wall_pos_new, mut active_new) = (false, false, false);
+        if let Some(w) = walls {
+            wall_grid_new = stage(&mut self.wall_keys, w.grid.cells.iter().map(key));
+            wall_grid_new |= stage(&mut self.wall_starts, w.grid.starts.iter().copied());
+            let p = w.walls;
+            wall_pos_new = stage(&mut self.wall_pos, (0..p.len()).map(|i| [p.x[i], p.y[i], p.z[i], 0.0]));
+            active_new = stage(&mut self.active, w.active.iter().copied());
         }
-        self.wall_pos.clear();
-        self.wall_pos.extend((0..walls.len()).map(|i| [walls.x[i], walls.y[i], walls.z[i], 0.0]));
-        let rows = |n: usize| (8 * RANGES * n) as u64;
-        let sizes: [u64; 9] = [
+        let with_walls = walls.is_some();
+        let current = match self.built {
+            Some(had_walls) => {
+                !fluid_new && (!with_walls || had_walls && !(wall_grid_new || wall_pos_new || active_new))
+            }
+            None => false,
+        };
+        if current {
+            return Ok(0.0);
+        }
+        // Until this build is submitted: a failure below leaves the device
+        // buffers unknown, and the next build uploads everything.
+        let first = self.built.is_none();
+        self.built = None;
+        // A pass that asks for no walls gets fluid rows only (fb empty).
+        let (nf, nwc, na) =
+            (self.fluid_keys.len(), if with_walls { self.wall_keys.len() } else { 0 }, self.active_len(with_walls));
+        let n = self.fluid_starts.last().copied().unwrap_or(0) as usize;
+        let rows = |k: usize| (8 * RANGES * k) as u64;
+        let sizes: [u64; 10] = [
             8 * nf as u64,
-            4 * fluid_grid.starts.len() as u64,
-            8 * nw as u64,
-            4 * wall_grid.starts.len() as u64,
-            16 * walls.len() as u64,
-            4 * na as u64,
+            4 * self.fluid_starts.len() as u64,
+            8 * self.wall_keys.len() as u64,
+            4 * self.wall_starts.len() as u64,
+            16 * self.wall_pos.len() as u64,
+            4 * self.active.len() as u64,
             rows(nf),
             rows(nf),
             rows(na),
+            4 * n as u64,
         ];
-        let mut replaced = false;
-        for (b, &bytes) in self.bufs.iter_mut().zip(&sizes) {
-            replaced |= b.reserve(ctx, bytes, true)?;
+        let mut replaced = [false; 10];
+        for ((b, &bytes), r) in self.bufs.iter_mut().zip(&sizes).zip(&mut replaced) {
+            *r = b.reserve(ctx, bytes, true)?;
         }
-        for (r, &bytes) in self.reads.iter_mut().zip(&sizes[6..]) {
-            r.reserve(ctx, bytes, false)?;
+        if SHARED.iter().any(|&k| replaced[k]) {
+            self.version += 1;
         }
-        if replaced || self.bind_group.is_none() {
+        if replaced.iter().any(|&r| r) || self.bind_group.is_none() {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() }];
             entries.extend(
                 self.bufs
@@ -176,22 +259,38 @@ impl RangesGpu {
         }
         let params = RangesParams {
             n_fluid_cells: nf as u32,
-            n_wall_cells: nw as u32,
+            n_wall_cells: nwc as u32,
             n_active: na as u32,
-            inv_cell: fluid_grid.inv_cell,
+            inv_cell: self.inv_cell,
         };
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        // A replaced buffer lost its contents: upload it again.
         let b = &self.bufs;
-        b[0].upload(ctx, &self.keys[0]);
-        b[1].upload(ctx, &fluid_grid.starts);
-        b[2].upload(ctx, &self.keys[1]);
-        b[3].upload(ctx, &wall_grid.starts);
-        b[4].upload(ctx, &self.wall_pos);
-        b[5].upload(ctx, active);
+        if fluid_new || first || replaced[FLUID_CELLS] || replaced[FLUID_STARTS] {
+            b[FLUID_CELLS].upload(ctx, &self.fluid_keys);
+            b[FLUID_STARTS].upload(ctx, &self.fluid_starts);
+        }
+        if with_walls {
+            if wall_grid_new || first || replaced[WALL_CELLS] || replaced[WALL_STARTS] {
+                b[WALL_CELLS].upload(ctx, &self.wall_keys);
+                b[WALL_STARTS].upload(ctx, &self.wall_starts);
+            }
+            if wall_pos_new || first || replaced[WALL_POS] {
+                b[WALL_POS].upload(ctx, &self.wall_pos);
+            }
+            if active_new || first || replaced[ACTIVE] {
+                b[ACTIVE].upload(ctx, &self.active);
+            }
+        }
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {
+            let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
+                query_set: set,
+                beginning_of_pass_write_index: Some(0),
+                end_of_pass_write_index: Some(1),
+            });
             let mut pass =
-                enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("ranges"), timestamp_writes: None });
+                enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("ranges"), timestamp_writes });
             pass.set_bind_group(0, self.bind_group.as_ref(), &[]);
             for (p, n) in self.pipelines.iter().zip([nf, na]) {
                 let (x, y) = dims((n as u32).div_ceil(WG));
@@ -201,19 +300,131 @@ impl RangesGpu {
                 }
             }
         }
-        for (k, r) in self.reads.iter().enumerate() {
-            if sizes[6 + k] > 0 {
-                enc.copy_buffer_to_buffer(&self.bufs[6 + k].buf, 0, &r.buf, 0, sizes[6 + k]);
+        if let Some((set, resolve, read)) = &self.queries {
+            enc.resolve_query_set(set, 0..2, &resolve.buf, 0);
+            enc.copy_buffer_to_buffer(&resolve.buf, 0, &read.buf, 0, 16);
+        }
+        ctx.queue.submit([enc.finish()]);
+        self.built = Some(with_walls);
+        self.builds += 1;
+        let Some((_, _, read)) = &self.queries else { return Ok(0.0) };
+        let mut stamps = [0u64; 2];
+        read_back(ctx, &[(&read.buf, 16)], |_, bytes| stamps = bytemuck::pod_read_unaligned(bytes))?;
+        let period = f64::from(ctx.queue.get_timestamp_period());
+        Ok(stamps[1].saturating_sub(stamps[0]) as f64 * period * 1e-6)
+    }
+
+    fn active_len(&self, with_walls: bool) -> usize {
+        if with_walls {
+            self.active.len()
+        } else {
+            0
+        }
+    }
+
+    /// Fluid particles of the tables on the device (the length of `cell_row`).
+    pub fn n_fluid(&self) -> usize {
+        if self.built.is_some() {
+            self.fluid_starts.last().copied().unwrap_or(0) as usize
+        } else {
+            0
+        }
+    }
+
+    /// Whether the tables on the device have the walls; then the number of
+    /// walls (of `wall_pos`) and of active walls (rows of `bf`).
+    pub fn walls(&self) -> Option<(usize, usize)> {
+        (self.built == Some(true)).then_some((self.wall_pos.len(), self.active.len()))
+    }
+
+    /// How many times the tables were built.
+    pub fn builds(&self) -> u64 {
+        self.builds
+    }
+
+    /// Bumped whenever a buffer the passes bind is replaced (a pass then
+    /// rebuilds its bind group).
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// Per fluid particle its row of `ff` / `fb` (u32).
+    pub fn cell_row(&self) -> &wgpu::Buffer {
+        &self.bufs[CELL_ROW].buf
+    }
+
+    /// Per fluid cell, 27 fluid ranges ((u32, u32)).
+    pub fn ff(&self) -> &wgpu::Buffer {
+        &self.bufs[FF].buf
+    }
+
+    /// Per fluid cell, 27 wall ranges.
+    pub fn fb(&self) -> &wgpu::Buffer {
+        &self.bufs[FB].buf
+    }
+
+    /// Per active wall, 27 fluid ranges.
+    pub fn bf(&self) -> &wgpu::Buffer {
+        &self.bufs[BF].buf
+    }
+
+    /// Wall positions (x, y, z, 0), m.
+    pub fn wall_pos(&self) -> &wgpu::Buffer {
+        &self.bufs[WALL_POS].buf
+    }
+
+    /// The active walls (u32 wall indices, ascending).
+    pub fn active(&self) -> &wgpu::Buffer {
+        &self.bufs[ACTIVE].buf
+    }
+
+    /// Reads the tables on the device back (tests; the step never does):
+    /// `cell_row`, `ff`, `fb` and `bf` (empty without walls).
+    pub fn read_tables(
+        &self,
+        ctx: &GpuContext,
+        cell_row: &mut Vec<u32>,
+        ff: &mut Vec<[u32; 2]>,
+        fb: &mut Vec<[u32; 2]>,
+        bf: &mut Vec<[u32; 2]>,
+    ) -> Result<(), GpuError> {
+        let (nf, na) =
+            (if self.built.is_some() { self.fluid_keys.len() } else { 0 }, self.active_len(self.built == Some(true)));
+        let n = self.n_fluid();
+        let sizes = [4 * n as u64, (8 * RANGES * nf) as u64, (8 * RANGES * nf) as u64, (8 * RANGES * na) as u64];
+        let reads: Vec<GpuArray> = ["read cell_row", "read ff", "read fb", "read bf"]
+            .into_iter()
+            .zip(&sizes)
+            .map(|(l, &bytes)| {
+                let mut r = GpuArray::new(ctx, l, READBACK);
+                r.reserve(ctx, bytes, false).map(|_| r)
+            })
+            .collect::<Result<_, _>>()?;
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        for ((r, k), &bytes) in reads.iter().zip([CELL_ROW, FF, FB, BF]).zip(&sizes) {
+            if bytes > 0 {
+                enc.copy_buffer_to_buffer(&self.bufs[k].buf, 0, &r.buf, 0, bytes);
             }
         }
         ctx.queue.submit([enc.finish()]);
+        cell_row.resize(n, 0);
         ff.resize(nf * RANGES, [0, 0]);
         fb.resize(nf * RANGES, [0, 0]);
         bf.resize(na * RANGES, [0, 0]);
-        let reads: Vec<(&wgpu::Buffer, u64)> = self.reads.iter().zip(&sizes[6..]).map(|(r, &s)| (&r.buf, s)).collect();
-        let mut outs = [ff, fb, bf];
-        read_back(ctx, &reads, |k, bytes| {
-            for (o, v) in outs[k].iter_mut().zip(bytes.chunks_exact(8)) {
+        let list: Vec<(&wgpu::Buffer, u64)> = reads.iter().zip(&sizes).map(|(r, &s)| (&r.buf, s)).collect();
+        read_back(ctx, &list, |k, bytes| {
+            if k == 0 {
+                for (o, v) in cell_row.iter_mut().zip(bytes.chunks_exact(4)) {
+                    *o = bytemuck::pod_read_unaligned(v);
+                }
+                return;
+            }
+            let out = match k {
+                1 => &mut *ff,
+                2 => &mut *fb,
+                _ => &mut *bf,
+            };
+            for (o, v) in out.iter_mut().zip(bytes.chunks_exact(8)) {
                 *o = bytemuck::pod_read_unaligned(v);
             }
         })

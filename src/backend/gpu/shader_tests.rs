@@ -1,12 +1,13 @@
 //! Every WGSL file under `shaders/` compiles (parse and validation by naga,
-//! wgpu's shader compiler, no device needed), and each `#[repr(C)]`
-//! parameter struct has the size and field offsets of its WGSL twin.
+//! wgpu's shader compiler, no device needed) as the device gets it (with
+//! its common files prepended), and each `#[repr(C)]` parameter struct has
+//! the size and field offsets of its WGSL twin.
 
 use super::drift::DriftParams;
 use super::iisph::IisphParams;
 use super::neighbors::NeighborParams;
 use super::ranges::RangesParams;
-use super::SHADERS;
+use super::{shader_source, COMMON, SHADERS};
 use std::mem::{offset_of, size_of};
 use std::path::PathBuf;
 
@@ -33,10 +34,28 @@ fn every_wgsl_file_compiles() {
     assert!(!files.is_empty());
     for f in &files {
         let src = std::fs::read_to_string(f).expect("read shader");
-        compile(&f.display().to_string(), &src);
         let name = f.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-        assert!(SHADERS.iter().any(|(n, s)| *n == name && *s == src), "{name} is not embedded in SHADERS");
+        if let Some((_, text)) = COMMON.iter().find(|(n, _)| *n == name) {
+            // Compiled within the shaders that use it.
+            assert_eq!(*text, src, "{name} is not the embedded COMMON text");
+            assert!(SHADERS.iter().any(|(_, c, _)| c.contains(&name)), "no shader uses {name}");
+            continue;
+        }
+        assert!(SHADERS.iter().any(|(n, _, s)| *n == name && *s == src), "{name} is not embedded in SHADERS");
+        compile(name, &shader_source(name).expect("embedded"));
     }
+}
+
+/// The shader `name` as the device gets it, compiled.
+fn module(name: &str) -> naga::Module {
+    compile(name, &shader_source(name).unwrap_or_else(|| panic!("{name} not in SHADERS")))
+}
+
+#[test]
+fn common_grid_alone_compiles() {
+    // Pure functions and constants: valid on its own.
+    let (name, src) = COMMON[0];
+    compile(name, src);
 }
 
 /// (size, [(member, offset)]) of WGSL struct `name` in `module`.
@@ -58,8 +77,7 @@ macro_rules! rust_layout {
 
 #[test]
 fn iisph_params_layout_matches_wgsl() {
-    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "iisph.wgsl").expect("iisph.wgsl");
-    let module = compile("iisph.wgsl", src);
+    let module = module("iisph.wgsl");
     let rust = rust_layout!(
         IisphParams,
         n_fluid,
@@ -80,8 +98,7 @@ fn iisph_params_layout_matches_wgsl() {
 
 #[test]
 fn neighbor_params_layout_matches_wgsl() {
-    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "neighbors.wgsl").expect("neighbors.wgsl");
-    let module = compile("neighbors.wgsl", src);
+    let module = module("neighbors.wgsl");
     let rust = rust_layout!(NeighborParams, n, n_pow2, k, j, inv_cell, pad0, pad1, pad2);
     assert_eq!(wgsl_layout(&module, "NeighborParams"), rust);
     let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
@@ -90,8 +107,7 @@ fn neighbor_params_layout_matches_wgsl() {
 
 #[test]
 fn iisph_entry_points_are_the_cpu_pass_names() {
-    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "iisph.wgsl").expect("iisph.wgsl");
-    let module = compile("iisph.wgsl", src);
+    let module = module("iisph.wgsl");
     let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
     // The twins of porosph_kernels::iisph::{pressure_acceleration, fluid_jacobi, wall_jacobi}.
     for f in ["pressure_acceleration", "fluid_jacobi", "wall_jacobi"] {
@@ -101,8 +117,7 @@ fn iisph_entry_points_are_the_cpu_pass_names() {
 
 #[test]
 fn drift_params_layout_and_entry_points_match_wgsl() {
-    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "drift.wgsl").expect("drift.wgsl");
-    let module = compile("drift.wgsl", src);
+    let module = module("drift.wgsl");
     let rust = rust_layout!(
         DriftParams,
         n,
@@ -127,8 +142,7 @@ fn drift_params_layout_and_entry_points_match_wgsl() {
 
 #[test]
 fn ranges_params_layout_and_entry_points_match_wgsl() {
-    let (_, src) = SHADERS.iter().find(|(n, _)| *n == "ranges.wgsl").expect("ranges.wgsl");
-    let module = compile("ranges.wgsl", src);
+    let module = module("ranges.wgsl");
     let rust = rust_layout!(RangesParams, n_fluid_cells, n_wall_cells, n_active, inv_cell);
     assert_eq!(wgsl_layout(&module, "RangesParams"), rust);
     // The twins of backend::gpu::ranges::{fluid_rows, wall_rows}.
