@@ -6,7 +6,7 @@
 //
 // The CPU pass reads per-pair g_ij = Vbar_ij grad W_ij from the fluid-fluid
 // pair lists (scaled by the harmonic pair volume in pass 4); here the pairs
-// are found from the cell-range tables of shaders/iisph.wgsl (27 particle
+// are found from the cell-range tables of shaders/ranges.wgsl (27 particle
 // ranges per fluid cell) and g_ij is recomputed from positions and current
 // volumes. Summation order: the GPU adds each neighbour's term one by one in
 // the order of the cell ranges (cells in CellGrid::neighbor_ranges order,
@@ -46,8 +46,6 @@ struct DriftParams {
     phase: array<vec4<f32>, 8>,
 }
 
-const RANGES: u32 = 27u;
-const WG: u32 = 64u;
 // PHYSICS.md §4.1 guards (kernels/src/phases.rs).
 const MIN_ALPHA_F: f32 = 0.01;
 const MIN_PHASE_FRACTION: f32 = 0.01;
@@ -77,35 +75,6 @@ const MIN_PHASE_FRACTION: f32 = 0.01;
 // e_k (xyz) per phase and particle: grad p^pore_fk (Pa/m) or q_k,f (m/s);
 // only read with extra_term.
 @group(0) @binding(12) var<storage, read> extra: array<vec4<f32>>;
-
-// W'(r)/r of the cubic spline, 1/m^5 (as in shaders/iisph.wgsl).
-fn grad_over_r(r: f32) -> f32 {
-    let q = r * P.inv_support;
-    let inner = P.kernel_l * (3.0 * q - 2.0) * P.inv_support;
-    let om = max(1.0 - q, 0.0);
-    let outer = -P.kernel_l * om * om / max(r, 0.5 * P.support);
-    return select(outer, inner, q <= 0.5);
-}
-
-// Harmonic pair volume Vbar_ij = 2 V_i V_j / (V_i + V_j), 0 if V_i V_j = 0.
-fn harmonic_volumes(vi: f32, vj: f32) -> f32 {
-    let prod = vi * vj;
-    return select(0.0, 2.0 * prod / (vi + vj), prod > 0.0);
-}
-
-// g_ij = Vbar_ij grad W(x_i - x_j), or 0 outside the support.
-fn pair_gradient(xi: vec3<f32>, xj: vec3<f32>, vi: f32, vj: f32) -> vec3<f32> {
-    let d = xi - xj;
-    let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    if (r2 >= P.support * P.support) {
-        return vec3<f32>(0.0);
-    }
-    return (grad_over_r(sqrt(r2)) * d) * harmonic_volumes(vi, vj);
-}
-
-fn linear_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
-    return gid.y * nwg.x * WG + gid.x;
-}
 
 // Step 1 (kernels/src/drift.rs phase_velocity), every phase of particle i:
 // v_k = tau_k (rho_k a - grad p_k) - sigma_k grad alpha_k / alpha_k (the

@@ -32,8 +32,7 @@ pub const COMMON: [(&str, &str); 2] = [
 /// The WGSL sources of the passes, by file name (compiled into the binary),
 /// with the [`COMMON`] files prepended to each, in order.
 pub const SHADERS: [(&str, &[&str], &str); 4] = [
-    // Keeps its own copies of the common code for now.
-    ("drift.wgsl", &[], include_str!("../../../shaders/drift.wgsl")),
+    ("drift.wgsl", &["common_grid.wgsl", "common_kernel.wgsl"], include_str!("../../../shaders/drift.wgsl")),
     ("iisph.wgsl", &["common_grid.wgsl", "common_kernel.wgsl"], include_str!("../../../shaders/iisph.wgsl")),
     ("neighbors.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/neighbors.wgsl")),
     ("ranges.wgsl", &["common_grid.wgsl"], include_str!("../../../shaders/ranges.wgsl")),
