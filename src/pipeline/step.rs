@@ -9,7 +9,7 @@ use super::solid::SolidModel;
 use super::timing::pass;
 use super::{Params, Simulation, StepStats, Workspace};
 use crate::backend::gpu::{
-    DriftInput, DriftOutput, GpuBackend, PorousDriftInput, SolveInput, SolveOutput, SolveSettings,
+    DriftInput, DriftOutput, GpuBackend, PorousDriftInput, SolveInput, SolveOutput, SolveSettings, WallInput,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -251,6 +251,20 @@ fn step_passes(
         build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
         if ns > 0 {
             solid_neighbors(p, fluid, solids, walls, w);
+        }
+        // With the neighbour search on the GPU, also the cell-range tables
+        // the GPU passes of this step read (with the walls' rows for the
+        // pressure solve), built on the device; else the first pass that
+        // needs them builds them.
+        let solve_on_gpu = |g: &GpuBackend| g.passes.pressure_solve && ns == 0;
+        let tables = |g: &GpuBackend| g.passes.neighbors && (solve_on_gpu(g) || (g.passes.drift && p.mixture()));
+        if let Some(g) = w.gpu.as_deref_mut().filter(|g| n > 0 && tables(g)) {
+            let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+            let with_walls = solve_on_gpu(g).then_some(WallInput { grid: &w.wall_grid, walls: wp, active: &w.active });
+            match g.cell_ranges(&w.fluid_grid, with_walls) {
+                Ok(ms) => gpu_ms += ms,
+                Err(e) => w.gpu_error = Some(format!("GPU cell-range tables failed: {e}")),
+            }
         }
     });
     let fs_pairs = (ns > 0).then_some(&w.fs);

@@ -17,6 +17,7 @@ pub use neighbors::{NeighborParams, NeighborsGpu};
 pub use ranges::{RangesGpu, RangesParams, WallInput};
 
 use super::GpuPasses;
+use porosph_kernels::grid::CellGrid;
 use std::fmt;
 
 /// Shared WGSL (WGSL has no include), by file name: prepended to the
@@ -243,6 +244,15 @@ impl GpuBackend {
     ) -> Result<Option<f64>, GpuError> {
         let ctx = &self.ctx;
         self.neighbors.get_or_insert_with(|| NeighborsGpu::new(ctx)).sort(ctx, pts, inv_cell, sort, perm)
+    }
+
+    /// The cell-range tables of the GPU passes (with the walls' rows where
+    /// `walls` is given) built on the device for this step's grids, the
+    /// last part of the neighbour search on the GPU; a pass that finds them
+    /// current does not build them again. Returns the device time, ms.
+    pub fn cell_ranges(&mut self, fluid_grid: &CellGrid, walls: Option<WallInput>) -> Result<f64, GpuError> {
+        let Self { ctx, ranges, .. } = self;
+        ranges.get_or_insert_with(|| RangesGpu::new(ctx)).ensure(ctx, fluid_grid, walls)
     }
 
     /// The IISPH Jacobi loop (pass 5) on the GPU; see [`IisphGpu::solve`].
