@@ -181,30 +181,20 @@ fn dropped_block_keeps_the_fluid_out_and_stays_stable() {
 /// without a restart budget overrun or a step error.
 #[test]
 fn one_fluid_layer_under_a_block_converges_at_the_default_omega() {
-    let scene = r#"
-[simulation]
-particle_spacing = 0.02
-end_time = 1.0
-max_dt = 0.002
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 1.0
-[[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.1] }
-container = true
-[[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.15, 0.1] }
-fractions = { water = 1.0 }
-[[solid]]
-name = "block"
-box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] }
-density = 600.0
-shear_modulus = 2e4
-lame_lambda = 1e4
-fixed = { box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] } }
-"#;
-    let mut sim = Simulation::new(common::scene_text(scene));
+    // The block held (`fixed`), dt 2 ms.
+    let block = TankWithBlock {
+        d: 0.02,
+        tank: [0.3, 0.3, 0.1],
+        water: 0.15,
+        viscosity: 1.0,
+        lo: [0.1, 0.02, 0.0],
+        hi: [0.2, 0.12, 0.1],
+        density: 600.0,
+        lambda: 1e4,
+    };
+    let scene = block.text().replace("max_dt = 0.003", "max_dt = 0.002")
+        + "fixed = { box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] } }\n";
+    let mut sim = Simulation::new(common::scene_text(&scene));
     let (mut restarts, mut worst) = (0, 0.0f32);
     for step in 1..=100 {
         let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
