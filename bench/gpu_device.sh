@@ -30,6 +30,8 @@ prepare)
     CARGO_TARGET_DIR=target/device RUSTFLAGS="-C target-cpu=x86-64-v3" \
         cargo build --release -p porosph-bench
     cp target/device/release/porosph-bench "$dir/"
+    # Debug info would take most of the 64 MiB a device call may carry.
+    strip "$dir/porosph-bench"
     (cd "$dir" && rm -f ./*.deb && apt-get download libvulkan1)
     ls -l "$dir"
     ;;
