@@ -47,8 +47,9 @@ pub const GPU_PASS_NAMES: [&str; 3] = ["neighbors", "pressure_solve", "drift"];
 /// Which passes go to the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GpuPasses {
-    /// Pass 0, neighbour search: its Morton keys and sort (the cell ranges
-    /// and pairs the CPU passes read are built on the CPU).
+    /// Pass 0, neighbour search: its Morton keys and sort, and the
+    /// cell-range tables the step's GPU passes read (the cell grid and the
+    /// pairs the CPU passes read are built on the CPU).
     pub neighbors: bool,
     /// Pass 5, the IISPH relaxed Jacobi loop.
     pub pressure_solve: bool,
