@@ -328,8 +328,10 @@ fn step_passes(
     let sigma_b = zeros(arena, na);
     let vol_b = zeros(arena, na);
     let vol_b_full = zeros(arena, walls.len());
-    // Solid rows, in the sorted order of the workspace: rest volumes,
-    // sigma_s = sum V0 W over solids (current) and fluid, volumes.
+    // Solid rows, in the sorted order of the workspace: body, rest volumes,
+    // sigma_s = sum V0 W over the own body (current) and fluid, volumes.
+    let body_s =
+        arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
     let v0_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.ppe_volume[i as usize]));
     let sigma_s = zeros(arena, ns);
     let vol_s = zeros(arena, ns);
@@ -338,9 +340,7 @@ fn step_passes(
         iisph::fluid_volumes(&w.ff, &w.fb, fs, v0, &walls.rest_volume, sigma, vol);
         if ns > 0 {
             let sigma_ss = zeros(arena, ns);
-            let group = arena
-                .alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
-            iisph::kernel_sums_within(&w.ss, v0_s, group, sigma_ss);
+            iisph::kernel_sums_within(&w.ss, v0_s, body_s, sigma_ss);
             iisph::wall_volumes(&w.sf, &w.solid_rows, sigma_ss, v0_s, v0, sigma_s, vol_s);
         }
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, v0, sigma_b, vol_b);
@@ -452,8 +452,6 @@ fn step_passes(
             body_inv_mass[b] = if anchored[b] || mass[b] <= 0.0 { 0.0 } else { (1.0 / mass[b]) as f32 };
         }
     }
-    let body_s =
-        arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
     let inv_mass_s = arena.alloc_slice_fill_iter(body_s.iter().map(|&b| body_inv_mass[b as usize]));
     let body_force = arena.alloc_slice_fill_copy(3 * nbodies, 0.0f64);
     let (asx, asy, asz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
@@ -800,9 +798,12 @@ fn mixture_passes(
     let fy = zeros(arena, np * n);
     let fz = zeros(arena, np * n);
     // P-Eq. 12's inner fractions, drift velocities and fluxes (porous only).
-    let ni = if porous.is_some() { np * n } else { 0 };
-    let beta: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.beta[..ni.min(np)].iter().map(|b| b.as_slice()));
-    let beta_f = arena.alloc_slice_fill_iter((0..n.min(ni)).map(|i| beta.iter().map(|b| b[i]).sum::<f32>()));
+    let (ni, beta, beta_f): (usize, &[&[f32]], &[f32]) = if porous.is_some() {
+        let beta = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
+        (np * n, beta, arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
+    } else {
+        (0, &[], &[])
+    };
     let [bx, by, bz] = [zeros(arena, ni), zeros(arena, ni), zeros(arena, ni)];
     let [gx, gy, gz] = [zeros(arena, ni), zeros(arena, ni), zeros(arena, ni)];
     let mut inner_done = false;
