@@ -189,10 +189,7 @@ impl<T> Context<T> for hdf5::Result<T> {
 }
 
 fn write_file(tmp: &Path, sim: &Simulation, run: &RunInfo, failure: Option<&str>) -> Result<(), String> {
-    let file = File::with_options()
-        .with_fapl(|p| p.libver_v18())
-        .create(tmp)
-        .ctx(format_args!("cannot create {}", tmp.display()))?;
+    let file = super::h5::create_v18(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
     write_contents(&file, sim, run, failure)?;
     // Closing flushes: a full disk may only show up here.
     file.close().ctx(format_args!("cannot close {}", tmp.display()))
@@ -467,7 +464,8 @@ fn open(path: &Path) -> Result<File, IoError> {
     if !meta.is_file() {
         return Err(IoError::new(path, "not a regular file"));
     }
-    File::open(path).map_err(|e| IoError::new(path, format!("not a readable HDF5 file (truncated or damaged?): {e}")))
+    super::h5::open(path)
+        .map_err(|e| IoError::new(path, format!("not a readable HDF5 file (truncated or damaged?): {e}")))
 }
 
 /// What [`inspect_checkpoint`] found.

@@ -3,6 +3,7 @@
 //! reading them back for `porosph inspect` and `porosph resume`.
 
 pub mod checkpoint;
+pub mod h5;
 mod series;
 mod stats;
 mod vtkhdf;

@@ -62,7 +62,7 @@ pub fn read_frame(path: &Path) -> Result<Frame, IoError> {
     if !meta.is_file() {
         return Err(IoError::new(path, "not a regular file"));
     }
-    let file = File::open(path).map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
+    let file = super::h5::open(path).map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
     read_file(&file).map_err(|reason| IoError::new(path, reason))
 }
 
@@ -246,7 +246,7 @@ impl<T> Context<T> for hdf5::Result<T> {
 }
 
 fn write_file(tmp: &Path, frame: &Frame) -> Result<(), String> {
-    let file = File::create(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
+    let file = super::h5::create(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
     write_contents(&file, frame)?;
     // Closing flushes: a full disk may only show up here.
     file.close().ctx(format_args!("cannot close {}", tmp.display()))
