@@ -1,11 +1,17 @@
-//! Backends: who computes a pass. The CPU backend is the `porosph-kernels`
-//! passes the pipeline calls directly; the GPU backend ([`gpu`]) runs the
-//! offloaded passes (PHYSICS.md §6: neighbour search, the IISPH Jacobi
-//! loop, drift velocities) through wgpu, and the rest stays on the CPU.
-//! A run picks `--backend cpu|gpu` and, for studies, which passes go to the
-//! GPU (`--gpu-passes`).
+//! Backends: who computes a pass. The step asks a [`Passes`] (the pass
+//! interface, [`passes`]) for the passes a backend may run (PHYSICS.md §6:
+//! the neighbour sort, the IISPH Jacobi loop, the drift velocities): the
+//! CPU backend ([`cpu`]) runs them with the `porosph-kernels` passes, the
+//! GPU backend ([`gpu`]) through wgpu; every other pass is the CPU's. A run
+//! picks `--backend cpu|gpu` and, for studies, which passes go to the GPU
+//! (`--gpu-passes`).
 
+pub mod cpu;
 pub mod gpu;
+pub mod passes;
+
+pub use cpu::Cpu;
+pub use passes::Passes;
 
 use std::fmt;
 use std::str::FromStr;

@@ -8,20 +8,16 @@ impl Simulation {
     /// From the next step on, runs the passes `gpu.passes` selects on the
     /// GPU (`--backend gpu`); the other passes stay on the CPU.
     pub fn use_gpu(&mut self, gpu: GpuBackend) {
-        self.work.gpu = Some(Box::new(gpu));
+        self.work.backend = Box::new(gpu);
     }
 
     /// The backend the simulation runs on.
     pub fn backend(&self) -> BackendKind {
-        if self.work.gpu.is_some() {
-            BackendKind::Gpu
-        } else {
-            BackendKind::Cpu
-        }
+        self.work.backend.kind()
     }
 
     /// The GPU backend, if any.
     pub fn gpu(&self) -> Option<&GpuBackend> {
-        self.work.gpu.as_deref()
+        self.work.backend.gpu()
     }
 }

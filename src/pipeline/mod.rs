@@ -3,12 +3,19 @@
 //! the neighbour structures and the per-step arena.
 
 mod backend;
+mod integrate;
+mod mixture;
+mod neighbours;
+mod phases;
 mod porous;
+mod prediction;
+mod pressure;
 mod restore;
 mod setup;
 pub mod solid;
 mod step;
 pub mod timing;
+mod volumes;
 
 pub use restore::SavedState;
 pub use solid::{Peer2018, SolidModel, SolidStats};
@@ -157,10 +164,9 @@ struct Workspace {
     sb: PairLists,
     /// 0..number of solids (the identity row map of the solid rows).
     solid_rows: Vec<u32>,
-    /// The GPU backend, if the run uses one (`Simulation::use_gpu`).
-    gpu: Option<Box<crate::backend::gpu::GpuBackend>>,
-    /// Why the GPU failed during the last step (reported as a step error).
-    gpu_error: Option<String>,
+    /// Who runs the passes a backend may run (`Simulation::use_gpu`;
+    /// the CPU by default).
+    backend: Box<dyn crate::backend::Passes>,
 }
 
 /// A running simulation: state, time, and what it needs to step.

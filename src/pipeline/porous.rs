@@ -18,6 +18,7 @@
 //! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
 //! the strain it sees lags by one step (0 at the start: strain-free).
 
+use super::timing::{pass, PassTimes};
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore};
 use bumpalo::Bump;
@@ -33,26 +34,84 @@ fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
     arena.alloc_slice_fill_copy(n, 0.0f32)
 }
 
+/// N_f per fluid particle and the porous mask of the solids (1 for a
+/// particle of a porous solid), in the sorted order of the solid pair lists.
+pub(super) struct Partition<'a> {
+    pub n_f: &'a [f32],
+    pub mask: &'a [f32],
+}
+
 /// Pass 2's part of the porous coupling: N_f = sum_s W_fs over the porous
-/// solid particles within reach of each fluid particle (returned, with the
-/// porous mask of the solids in the sorted order of the solid pair lists),
-/// and P Alg. 4's fallback: where N_f = 0 every beta_k moves back to alpha_k.
+/// solid particles within reach of each fluid particle (P-Eq. 15's
+/// weights), and P Alg. 4's fallback: where N_f = 0 every beta_k moves back
+/// to alpha_k.
 pub(super) fn partition<'a>(
     p: &Params,
     fluid: &mut FluidStore,
     solids: &SolidStore,
     w: &Workspace,
     arena: &'a Bump,
-) -> (&'a [f32], &'a [f32]) {
-    let mask = arena.alloc_slice_fill_iter(
-        w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
-    );
-    let n_f = zeros(arena, fluid.len());
-    iisph::kernel_sums(&w.fs, mask, n_f);
-    for (a, b) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()) {
-        release_outside(n_f, a, b);
-    }
-    (n_f, mask)
+    tm: &mut PassTimes,
+) -> Partition<'a> {
+    tm.time(pass::POROUS, || {
+        let mask = arena.alloc_slice_fill_iter(
+            w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
+        );
+        let n_f = zeros(arena, fluid.len());
+        iisph::kernel_sums(&w.fs, mask, n_f);
+        for (a, b) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()) {
+            release_outside(n_f, a, b);
+        }
+        Partition { n_f, mask }
+    })
+}
+
+/// P Alg. 2 and the solid side of Alg. 3 ([`pore_state`]), before the
+/// pressure solve scales the fluid-solid pair gradients by pair volumes;
+/// with several phases also the fluid pairs of the inner transport
+/// (`w.ffb`: h^3 grad W, the full-particle volumes that the pressure
+/// solve's pair volumes, 0 for an inner particle, would cut off).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solid_terms<'a>(
+    p: &Params,
+    fluid: &FluidStore,
+    solids: &mut SolidStore,
+    w: &mut Workspace,
+    part: &Partition,
+    mixture: bool,
+    arena: &'a Bump,
+    tm: &mut PassTimes,
+) -> PoreTerms<'a> {
+    tm.time(pass::POROUS, || {
+        if mixture {
+            w.ffb.clone_from(&w.ff);
+            let cell = p.cell_volume();
+            w.ffb.used_mut().par_iter_mut().for_each(|blk| {
+                for g in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
+                    g.iter_mut().for_each(|x| *x *= cell);
+                }
+            });
+        }
+        pore_state(p, fluid, solids, w, arena, part.n_f, part.mask)
+    })
+}
+
+/// The absorption exchange of pass 12 (P-Eqs. 6-7, 22) within each
+/// particle, after the transport: alpha_k -= dt Gamma_k, beta_k += dt
+/// Gamma_k on the next fractions (phase k at `[k n, (k + 1) n)`).
+pub(super) fn exchange(
+    terms: &PoreTerms,
+    n: usize,
+    alpha_next: &mut [f32],
+    beta_next: &mut [f32],
+    dt: f32,
+    tm: &mut PassTimes,
+) {
+    tm.time(pass::PHASE_TRANSPORT, || {
+        for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
+            porosph_kernels::porous::exchange(&terms.gamma[k * n..(k + 1) * n], dt, a, b);
+        }
+    });
 }
 
 /// The fluid-side porous fields of one step, per fluid particle (per-phase
@@ -77,7 +136,7 @@ pub(super) struct PoreTerms<'a> {
 
 /// Passes 6, 7 and 9 (module doc). `n_f` and `mask` come from
 /// [`partition`]; `w.fs` must still hold plain kernel gradients.
-pub(super) fn pore_state<'a>(
+fn pore_state<'a>(
     p: &Params,
     fluid: &FluidStore,
     solids: &mut SolidStore,

@@ -6,12 +6,16 @@
 //! corotated SPH elasticity of Peer et al. 2018; another model (the paper's
 //! Example 7 uses a granular one) implements the same trait.
 
-use crate::store::SolidStore;
+use super::timing::{pass, PassTimes};
+use super::{Params, Workspace};
+use crate::store::{SolidStore, WallStore};
+use bumpalo::Bump;
 use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
+use porosph_kernels::iisph::{self, VelMut};
 use rayon::prelude::*;
 
 /// Rest volumes of the solid particles in the pressure solve, Akinci-style
@@ -189,5 +193,85 @@ impl SolidModel for Peer2018 {
             + 36 * self.t.capacity()
             + 4 * self.von_mises.capacity()
             + self.cg.bytes()
+    }
+}
+
+/// Pass 8 (P Alg. 2): the solids' step under gravity and the fluid's
+/// pressure force F_s (the reaction of the solid terms of a^p,
+/// `iisph::solid_pressure_force`), with the pore stress `pore` (P-Eq. 5);
+/// then their contact with the walls. `p_solid` are the solid pressures of
+/// the solve (sorted order), `p_fluid` and `vol_fluid` the fluid's.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn advance(
+    p: &Params,
+    solids: &mut SolidStore,
+    model: &mut dyn SolidModel,
+    walls: &WallStore,
+    w: &Workspace,
+    p_solid: &[f32],
+    p_fluid: &[f32],
+    vol_fluid: &[f32],
+    pore: Option<&[f32]>,
+    dt: f32,
+    arena: &Bump,
+    tm: &mut PassTimes,
+) -> SolidStats {
+    let ns = solids.len();
+    tm.time(pass::ELASTICITY, || {
+        let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
+        let (fx, fy, fz) = (zeros(ns), zeros(ns), zeros(ns));
+        iisph::solid_pressure_force(&w.sf, p_solid, p_fluid, vol_fluid, VelMut { x: fx, y: fy, z: fz });
+        let g = Vec3::from(p.gravity);
+        let a_ext = arena.alloc_slice_fill_copy(ns, g);
+        for (k, &i) in w.solid_perm.iter().enumerate() {
+            let i = i as usize;
+            solids.pressure[i] = p_solid[k];
+            a_ext[i] = g + Vec3::new(fx[k], fy[k], fz[k]) / solids.mass[i];
+        }
+        let stats = model.advance(solids, a_ext, pore, dt);
+        wall_contact(p, solids, walls, w);
+        stats
+    })
+}
+
+/// Contact of solids with the static walls (walls do not take part in the
+/// elastic solve): a solid particle closer than d to a wall particle may
+/// not move further towards the wall. Its velocity loses the component
+/// along the wall normal n that points into the wall, n the direction of
+/// -sum_b grad W_sb over its wall neighbours (frictionless, inelastic
+/// contact; a velocity projection after the elastic solve).
+fn wall_contact(p: &Params, solids: &mut SolidStore, walls: &WallStore, w: &Workspace) {
+    let d2 = p.h * p.h;
+    for (b, blk) in w.sb.used().iter().enumerate() {
+        for q in 0..blk.start.len().saturating_sub(1) {
+            let k = b * porosph_kernels::blocks::BLOCK + q;
+            let i = w.solid_perm[k] as usize;
+            if solids.fixed[i] != 0 {
+                continue;
+            }
+            let (xs, ys, zs) = (solids.x[i], solids.y[i], solids.z[i]);
+            let mut touching = false;
+            let mut n = Vec3::ZERO;
+            for pr in blk.range(q) {
+                if blk.w[pr] <= 0.0 {
+                    continue;
+                }
+                let j = blk.j[pr] as usize;
+                let r2 = (xs - walls.x[j]).powi(2) + (ys - walls.y[j]).powi(2) + (zs - walls.z[j]).powi(2);
+                touching |= r2 < d2;
+                n -= Vec3::new(blk.gx[pr], blk.gy[pr], blk.gz[pr]);
+            }
+            let len = n.length();
+            if !touching || len <= 0.0 {
+                continue;
+            }
+            let n = n / len;
+            let v = Vec3::new(solids.vx[i], solids.vy[i], solids.vz[i]);
+            let vn = v.dot(n);
+            if vn < 0.0 {
+                let v = v - vn * n;
+                (solids.vx[i], solids.vy[i], solids.vz[i]) = (v.x, v.y, v.z);
+            }
+        }
     }
 }

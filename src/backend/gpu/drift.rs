@@ -13,11 +13,8 @@
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
+pub use crate::backend::passes::{DriftInput, DriftOutput, PorousDriftInput};
 use bytemuck::{Pod, Zeroable};
-use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::Vel;
-use porosph_kernels::neighbors::Points;
-use porosph_kernels::phases::PhaseConstants;
 use std::f32::consts::PI;
 
 /// Phases the shader's parameter block has room for.
@@ -50,65 +47,6 @@ pub struct DriftParams {
     pub pad: u32,
     /// Per phase (rho_k, tau_k, sigma_k, 0).
     pub phase: [[f32; 4]; MAX_PHASES],
-}
-
-/// What the pass reads. The fluid is sorted by the cells of `fluid_grid`.
-pub struct DriftInput<'a> {
-    /// Kernel support H, m.
-    pub support: f32,
-    pub fluid_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
-    /// Current volume V of each particle (the volume of the harmonic pair
-    /// volumes the CPU pair lists are scaled by), m^3.
-    pub vol: &'a [f32],
-    /// alpha_k per phase.
-    pub alpha: &'a [&'a [f32]],
-    pub alpha_f: &'a [f32],
-    /// p / alpha_f (`drift::pressure_per_fraction`) for phase pressures
-    /// p_k = alphahat_k p; `None` for a shared pressure.
-    pub p_per_fraction: Option<&'a [f32]>,
-    pub a_visc: Vel<'a>,
-    pub a_p: Vel<'a>,
-    pub phases: &'a [PhaseConstants],
-    /// The conservative transport's fluxes F_k = w_k - alpha_k m.
-    pub conservative: bool,
-    /// Porous solids: P-Eq. 11's porous term and the inner drift (P-Eq. 12).
-    pub porous: Option<PorousDriftInput<'a>>,
-}
-
-/// The porous terms of the drift (PHYSICS.md §4.2), as
-/// `pipeline::step::mixture_passes` adds them on the CPU: the outer
-/// phase velocities get -phi grad p^pore_fk (P-Eq. 11); the inner drift
-/// (P-Eq. 12) is the same pass over the inner fractions beta with sigma',
-/// no phase pressure, -tau' q_k,f, and every volume h^3.
-pub struct PorousDriftInput<'a> {
-    /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
-    pub grad_pore: [&'a [f32]; 3],
-    /// phi of P-Eq. 11, m^2/(Pa s).
-    pub pore_drift: f32,
-    /// beta_k per phase.
-    pub beta: &'a [&'a [f32]],
-    /// beta_f = sum_k beta_k.
-    pub beta_f: &'a [f32],
-    /// q_k,f, phase-major, m/s.
-    pub q: [&'a [f32]; 3],
-    /// tau' of P-Eq. 12.
-    pub inner_tau: f32,
-    /// sigma' of P-Eq. 12, m^2/s.
-    pub inner_sigma: f32,
-    /// h^3, the volume of the inner pairs' gradients h^3 grad W_ij, m^3.
-    pub cell_volume: f32,
-}
-
-/// What the pass writes, phase-major (phase k at `[k n, (k + 1) n)`): the
-/// drift velocities u_mk and the phase fluxes F_k, m/s.
-pub struct DriftOutput<'a> {
-    pub ux: &'a mut [f32],
-    pub uy: &'a mut [f32],
-    pub uz: &'a mut [f32],
-    pub fx: &'a mut [f32],
-    pub fy: &'a mut [f32],
-    pub fz: &'a mut [f32],
 }
 
 const ENTRY_POINTS: [&str; 3] = ["phase_velocity", "mixture_velocity", "drift_velocity"];

@@ -17,6 +17,7 @@
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
+pub use crate::backend::passes::{SolveReport, SolveSettings};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Rows, VelMut};
@@ -75,18 +76,6 @@ impl IisphParams {
     }
 }
 
-/// The loop's settings (as the CPU loop in `pipeline::step`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SolveSettings {
-    pub dt: f32,
-    pub omega: f32,
-    pub min_iterations: u32,
-    pub max_iterations: u32,
-    pub max_density_error: f32,
-    /// Fluid rows in the solve, at least 1.
-    pub rows_active: f32,
-}
-
 /// What the loop reads. The fluid is sorted by the cells of `fluid_grid`,
 /// the walls by those of `wall_grid`; the grids, wall positions and active
 /// walls are what the cell-range tables ([`RangesGpu::ensure`]) are built
@@ -118,18 +107,6 @@ pub struct SolveOutput<'a> {
     /// Pressure of every wall (inactive walls: 0 on entry, left so).
     pub p_wall: &'a mut [f32],
     pub ap: VelMut<'a>,
-}
-
-/// How the loop went.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SolveReport {
-    pub iterations: u32,
-    pub density_error: f32,
-    /// Device time of the loop from timestamp queries, ms (None where the
-    /// adapter has none).
-    pub gpu_ms: Option<f64>,
-    /// Submissions (host round trips) the loop took.
-    pub submits: u32,
 }
 
 const ENTRY_POINTS: [&str; 6] = [
@@ -410,7 +387,13 @@ impl IisphGpu {
             let period = f64::from(ctx.queue.get_timestamp_period());
             stamps.chunks_exact(2).map(|t| t[1].saturating_sub(t[0]) as f64 * period * 1e-6).sum()
         });
-        Ok(SolveReport { iterations: status[0], density_error: f32::from_bits(status[2]), gpu_ms, submits })
+        Ok(SolveReport {
+            iterations: status[0],
+            density_error: f32::from_bits(status[2]),
+            gpu_ms,
+            submits,
+            restarts: 0,
+        })
     }
 
     /// A compute pass with the bind group set, timed as submission `k`.

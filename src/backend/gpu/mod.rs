@@ -16,8 +16,13 @@ pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, Sol
 pub use neighbors::{NeighborParams, NeighborsGpu};
 pub use ranges::{RangesGpu, RangesParams, WallInput};
 
-use super::GpuPasses;
+use super::cpu::Cpu;
+use super::passes::{DriftProblem, DriftReport, Passes, PressureSystem, StepShape, Unknowns};
+use super::{BackendKind, GpuPasses};
+use bumpalo::Bump;
+use porosph_kernels::drift::max_drift_speed;
 use porosph_kernels::grid::CellGrid;
+use porosph_kernels::neighbors::Points;
 use std::fmt;
 
 /// Shared WGSL (WGSL has no include), by file name: prepended to the
@@ -218,7 +223,9 @@ impl GpuContext {
 /// pipelines and resident buffers of each (built on first use). The
 /// cell-range tables are shared: the first pass of a step that needs them
 /// builds them on the device for the step's grids, the others bind the
-/// same buffers.
+/// same buffers. As the step's [`Passes`], it runs the passes of
+/// `passes` on the device and hands the others to the CPU, as it does a
+/// pass whose device run fails (the error is reported after the step).
 pub struct GpuBackend {
     pub ctx: GpuContext,
     pub passes: GpuPasses,
@@ -226,12 +233,25 @@ pub struct GpuBackend {
     neighbors: Option<NeighborsGpu>,
     drift: Option<DriftGpu>,
     ranges: Option<RangesGpu>,
+    /// What the device does not run.
+    cpu: Cpu,
+    /// Why a device pass of the last step failed.
+    error: Option<String>,
 }
 
 impl GpuBackend {
     /// Opens the GPU (an error says why there is none).
     pub fn new(passes: GpuPasses) -> Result<Self, GpuError> {
-        Ok(Self { ctx: GpuContext::new()?, passes, iisph: None, neighbors: None, drift: None, ranges: None })
+        Ok(Self {
+            ctx: GpuContext::new()?,
+            passes,
+            iisph: None,
+            neighbors: None,
+            drift: None,
+            ranges: None,
+            cpu: Cpu,
+            error: None,
+        })
     }
 
     /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
@@ -284,5 +304,108 @@ impl GpuBackend {
         let ms = ranges.ensure(ctx, input.fluid_grid, None)?;
         let t = drift.get_or_insert_with(|| DriftGpu::new(ctx)).run(ctx, ranges, input, out, inner)?;
         Ok(t.map(|t| t + ms))
+    }
+}
+
+impl Passes for GpuBackend {
+    fn kind(&self) -> BackendKind {
+        BackendKind::Gpu
+    }
+
+    /// The keys and sort on the GPU (bitwise the CPU's order), or on the CPU.
+    fn sort(
+        &mut self,
+        fluid: Points,
+        inv_cell: f32,
+        keys: &mut Vec<u64>,
+        sort: &mut Vec<(u64, u32)>,
+        perm: &mut Vec<u32>,
+    ) -> f64 {
+        if self.passes.neighbors {
+            match self.sort_permutation(fluid, inv_cell, sort, perm) {
+                Ok(ms) => return ms.unwrap_or(0.0),
+                Err(e) => self.error = Some(format!("GPU neighbour sort failed: {e}")),
+            }
+        }
+        self.cpu.sort(fluid, inv_cell, keys, sort, perm)
+    }
+
+    /// With the neighbour search on the GPU, the cell-range tables of the
+    /// step's other GPU passes (with the walls' rows where the pressure
+    /// solve runs here), built on the device; without it, the first pass
+    /// that needs them builds them.
+    fn prepare(&mut self, fluid_grid: &CellGrid, walls: WallInput, step: StepShape) -> f64 {
+        let solve_here = self.passes.pressure_solve && !step.solids;
+        let tables = self.passes.neighbors && (solve_here || (self.passes.drift && step.mixture));
+        if !(step.fluid && tables) {
+            return 0.0;
+        }
+        match self.cell_ranges(fluid_grid, solve_here.then_some(walls)) {
+            Ok(ms) => ms,
+            Err(e) => {
+                self.error = Some(format!("GPU cell-range tables failed: {e}"));
+                0.0
+            }
+        }
+    }
+
+    /// The Jacobi loop on the GPU (`shaders/iisph.wgsl`, data resident).
+    /// The GPU system has fluid and wall rows only: with solids the solve
+    /// runs on the CPU.
+    fn pressure_solve(&mut self, sys: &PressureSystem, mut x: Unknowns, arena: &Bump) -> SolveReport {
+        if self.passes.pressure_solve && sys.solids.is_none() {
+            let inp = SolveInput {
+                support: sys.support,
+                fluid_grid: sys.fluid_grid,
+                wall_grid: sys.walls.grid,
+                fluid: sys.fluid,
+                walls: sys.walls.walls,
+                vol: sys.vol,
+                vm: sys.vm,
+                rows: sys.rows,
+                vol_wall: sys.vol_wall,
+                active: sys.walls.active,
+                wall_rows: sys.wall_rows,
+                settings: sys.settings,
+            };
+            let out = SolveOutput { p: &mut *x.p, p_wall: &mut *x.p_wall, ap: x.ap.reborrow() };
+            match GpuBackend::pressure_solve(self, &inp, out) {
+                Ok(r) => return r,
+                Err(e) => self.error = Some(format!("GPU pressure solve failed: {e}")),
+            }
+        }
+        self.cpu.pressure_solve(sys, x, arena)
+    }
+
+    /// The three gathers of the drift on the GPU (`shaders/drift.wgsl`),
+    /// with porous solids twice: outer and inner (P-Eqs. 11-12); the
+    /// largest drift speed is taken here.
+    fn drift(
+        &mut self,
+        prob: &DriftProblem,
+        mut out: DriftOutput,
+        mut inner: Option<DriftOutput>,
+        arena: &Bump,
+    ) -> DriftReport {
+        if self.passes.drift {
+            let n = prob.input.alpha_f.len();
+            match GpuBackend::drift(self, &prob.input, out.reborrow(), inner.as_mut().map(|o| o.reborrow())) {
+                Ok(ms) => {
+                    let speed = |o: &DriftOutput| max_drift_speed(super::cpu::phase_vel(arena, o.ux, o.uy, o.uz, n), n);
+                    let max_speed = speed(&out).max(inner.as_ref().map_or(0.0, speed));
+                    return DriftReport { max_speed, gpu_ms: ms.unwrap_or(0.0) };
+                }
+                Err(e) => self.error = Some(format!("GPU drift pass failed: {e}")),
+            }
+        }
+        self.cpu.drift(prob, out, inner, arena)
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        self.error.take()
+    }
+
+    fn gpu(&self) -> Option<&GpuBackend> {
+        Some(self)
     }
 }

@@ -14,6 +14,7 @@
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::{GpuContext, GpuError};
+pub use crate::backend::passes::WallInput;
 use porosph_kernels::grid::{cell_of, unmorton, CellGrid};
 use porosph_kernels::neighbors::Points;
 use rayon::prelude::*;
@@ -77,15 +78,6 @@ pub struct RangesParams {
     pub n_active: u32,
     /// 1 / cell size of the fluid grid, 1/m.
     pub inv_cell: f32,
-}
-
-/// The walls of the tables: their grid (the walls sorted by its cells),
-/// positions, and the active walls (ascending), whose rows make `bf`.
-#[derive(Clone, Copy)]
-pub struct WallInput<'a> {
-    pub grid: &'a CellGrid,
-    pub walls: Points<'a>,
-    pub active: &'a [u32],
 }
 
 const ENTRY_POINTS: [&str; 2] = ["fluid_rows", "wall_rows"];

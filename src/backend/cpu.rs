@@ -1,0 +1,272 @@
+//! The CPU backend of the pass interface: pass 0's sort, pass 5's Jacobi
+//! loop and pass 10's drift velocities with the `porosph-kernels` passes
+//! (cache blocks under rayon, SIMD neighbour loops, reductions in block
+//! order: bitwise the same for any thread count).
+
+use super::passes::{
+    DriftOutput, DriftProblem, DriftReport, Passes, PressureSystem, SolveReport, StepShape, Unknowns, WallInput,
+};
+use super::BackendKind;
+use bumpalo::Bump;
+use porosph_kernels::blocks::{nblocks, sum_f64};
+use porosph_kernels::drift::{self, PhaseVelocityInput};
+use porosph_kernels::grid::CellGrid;
+use porosph_kernels::iisph::{self, Jacobi, SolidPairs, Vel, VelMut};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+
+/// Every pass on the CPU.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Cpu;
+
+fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
+    arena.alloc_slice_fill_copy(n, 0.0f32)
+}
+
+impl Passes for Cpu {
+    fn kind(&self) -> BackendKind {
+        BackendKind::Cpu
+    }
+
+    fn sort(
+        &mut self,
+        fluid: Points,
+        inv_cell: f32,
+        keys: &mut Vec<u64>,
+        sort: &mut Vec<(u64, u32)>,
+        perm: &mut Vec<u32>,
+    ) -> f64 {
+        keys.resize(fluid.x.len(), 0);
+        compute_keys(fluid.x, fluid.y, fluid.z, inv_cell, keys);
+        sort_permutation(keys, sort, perm);
+        0.0
+    }
+
+    fn prepare(&mut self, _fluid_grid: &CellGrid, _walls: WallInput, _step: StepShape) -> f64 {
+        0.0
+    }
+
+    fn pressure_solve(&mut self, sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
+        jacobi_loop(sys, x, arena)
+    }
+
+    fn drift(
+        &mut self,
+        prob: &DriftProblem,
+        out: DriftOutput,
+        inner: Option<DriftOutput>,
+        arena: &Bump,
+    ) -> DriftReport {
+        let inp = &prob.input;
+        let n = inp.alpha_f.len();
+        let density = arena.alloc_slice_fill_iter(inp.phases.iter().map(|c| c.density));
+        let sums = MixtureSums { arena, n, density, conservative: inp.conservative };
+        // P-Eq. 11: the outer drift over the pressure solve's pairs.
+        let DriftOutput { ux, uy, uz, fx, fy, fz } = out;
+        let pv = PhaseVelocityInput {
+            ff: prob.ff,
+            alpha_f: inp.alpha_f,
+            p_per_fraction: inp.p_per_fraction,
+            a_visc: inp.a_visc,
+            a_p: inp.a_p,
+        };
+        let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+        let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+        for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
+            let (mut v, mut w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+            drift::phase_velocity(&pv, inp.alpha[k], inp.phases[k], v.reborrow(), w.reborrow());
+            // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
+            if let Some(pd) = &inp.porous {
+                let r = k * n..(k + 1) * n;
+                let [gx, gy, gz] = pd.grad_pore;
+                let e = Vel { x: &gx[r.clone()], y: &gy[r.clone()], z: &gz[r] };
+                porosph_kernels::porous::add_phase_term(inp.alpha[k], inp.alpha_f, e, -pd.pore_drift, v, w);
+            }
+        }
+        sums.drift_velocities(inp.alpha, inp.alpha_f, [&mut *ux, &mut *uy, &mut *uz], [&mut *fx, &mut *fy, &mut *fz]);
+        let mut max_speed = drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n);
+        // P-Eq. 12: the inner drift over the pairs with h^3 grad W (inner
+        // particles have no pressure-solve volume).
+        if let (Some(pd), Some(ffb), Some(out)) = (&inp.porous, prob.ffb, inner) {
+            let DriftOutput { ux: bx, uy: by, uz: bz, fx: gx, fy: gy, fz: gz } = out;
+            let pv = PhaseVelocityInput {
+                ff: ffb,
+                alpha_f: pd.beta_f,
+                p_per_fraction: None,
+                a_visc: inp.a_visc,
+                a_p: inp.a_p,
+            };
+            for (k, &beta_k) in pd.beta.iter().enumerate() {
+                let r = k * n..(k + 1) * n;
+                let phase = PhaseConstants { sigma: pd.inner_sigma, ..inp.phases[k] };
+                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                drift::phase_velocity(&pv, beta_k, phase, v, w);
+                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
+                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
+                let e = Vel { x: &pd.q[0][r.clone()], y: &pd.q[1][r.clone()], z: &pd.q[2][r] };
+                porosph_kernels::porous::add_phase_term(beta_k, pd.beta_f, e, -pd.inner_tau, v, w);
+            }
+            sums.drift_velocities(pd.beta, pd.beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
+            max_speed = max_speed.max(drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n));
+        }
+        DriftReport { max_speed, gpu_ms: 0.0 }
+    }
+
+    fn take_error(&mut self) -> Option<String> {
+        None
+    }
+}
+
+/// Pass 5 on the CPU: relaxed Jacobi (P-Eqs. 27-28) until the mean
+/// predicted density error is at most the settings' bound. Within the solve
+/// every solid body moves rigidly under the sum of the pressure forces on
+/// it ([`rigid_pressure_acceleration`]). A solve whose error grows starts
+/// over from the warm start with a smaller omega (`iisph::Divergence`).
+fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
+    let Unknowns { p, p_wall, p_active, p_solid, ap } = x;
+    let VelMut { x: apx, y: apy, z: apz } = ap;
+    let s = &sys.settings;
+    let n = p.len();
+    let ns = p_solid.len();
+    let err = zeros(arena, n);
+    let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
+    let (asx, asy, asz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    let nbodies = sys.solids.as_ref().map_or(0, |s| s.body_inv_mass.len());
+    let body_force = arena.alloc_slice_fill_copy(3 * nbodies, 0.0f64);
+    let fs_pairs = sys.solids.as_ref().map(|s| s.fs);
+    // The warm start, kept for a restart with a smaller omega.
+    let start = [arena.alloc_slice_copy(p), arena.alloc_slice_copy(p_active), arena.alloc_slice_copy(p_solid)];
+    let mut omega = s.omega;
+    let mut guard = iisph::Divergence::default();
+    let mut report = SolveReport::default();
+    let mut it = 0;
+    loop {
+        let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+        let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_solid });
+        iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
+        if let Some(solid) = &sys.solids {
+            let out = VelMut { x: &mut *asx, y: &mut *asy, z: &mut *asz };
+            let bodies = BodyMotion { body: solid.body, inv_mass: solid.body_inv_mass, sums: &mut *body_force };
+            rigid_pressure_acceleration(solid.sf, p_solid, p, sys.vol, bodies, out);
+        }
+        let ap = Vel { x: apx, y: apy, z: apz };
+        let a_s = Vel { x: asx, y: asy, z: asz };
+        let jac = Jacobi { dt: s.dt, omega };
+        let fs = fs_pairs.map(|pairs| (pairs, a_s));
+        iisph::fluid_jacobi(sys.ff, sys.fb, fs, ap, sys.rows, jac, p, err);
+        iisph::wall_jacobi(sys.bf, ap, None, sys.wall_rows, jac, p_active);
+        if let Some(solid) = &sys.solids {
+            iisph::wall_jacobi(solid.sf, ap, Some(a_s), solid.rows, jac, p_solid);
+        }
+        it += 1;
+        let e = (sum_f64(n, parts, |i| err[i] as f64) / f64::from(s.rows_active)) as f32;
+        report.density_error = e;
+        let restart = guard.diverging(e) && e > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
+        if restart {
+            p.copy_from_slice(start[0]);
+            p_active.copy_from_slice(start[1]);
+            p_solid.copy_from_slice(start[2]);
+            omega *= iisph::RELAXATION_BACKOFF;
+            guard = iisph::Divergence::default();
+            report.restarts += 1;
+        }
+        for (k, &b) in sys.walls.active.iter().enumerate() {
+            p_wall[b as usize] = p_active[k];
+        }
+        if (!restart && it >= s.min_iterations && e <= s.max_density_error) || it >= s.max_iterations {
+            break;
+        }
+    }
+    report.iterations = it;
+    let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
+    let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_solid });
+    iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
+    report
+}
+
+/// The bodies of the solid particles (sorted order) within the solve.
+struct BodyMotion<'a> {
+    /// Body of each solid particle.
+    body: &'a [u32],
+    /// 1/M of each body (0 if it has fixed particles).
+    inv_mass: &'a [f32],
+    /// Scratch: 3 per body.
+    sums: &'a mut [f64],
+}
+
+/// The rigid pressure acceleration of the bodies within the solve:
+/// a^p_s = (sum over the body of F_s) / M for every particle s of a body,
+/// F_s from [`iisph::solid_pressure_force`] (summed in f64 in particle
+/// order: deterministic). Strong coupling of the rigid motion, which
+/// carries the fluid's added mass: a body lighter than the fluid is
+/// unstable with per-particle masses, whose surface layer alone would face
+/// the fluid.
+fn rigid_pressure_acceleration(
+    sf: &PairLists,
+    p_s: &[f32],
+    p_f: &[f32],
+    vol_f: &[f32],
+    bodies: BodyMotion,
+    out: VelMut,
+) {
+    let VelMut { x, y, z } = out;
+    iisph::solid_pressure_force(sf, p_s, p_f, vol_f, VelMut { x: &mut *x, y: &mut *y, z: &mut *z });
+    let BodyMotion { body, inv_mass, sums } = bodies;
+    sums.iter_mut().for_each(|s| *s = 0.0);
+    for (k, &b) in body.iter().enumerate() {
+        let b = 3 * b as usize;
+        sums[b] += f64::from(x[k]);
+        sums[b + 1] += f64::from(y[k]);
+        sums[b + 2] += f64::from(z[k]);
+    }
+    for (k, &b) in body.iter().enumerate() {
+        let m = inv_mass[b as usize];
+        let b = 3 * b as usize;
+        x[k] = (sums[b] * f64::from(m)) as f32;
+        y[k] = (sums[b + 1] * f64::from(m)) as f32;
+        z[k] = (sums[b + 2] * f64::from(m)) as f32;
+    }
+}
+
+/// Steps 2-3 of P-Eq. 11 (or 12) for all phases: the mass- and
+/// volume-weighted mean phase velocities, then the drift velocities over
+/// the phase velocities v and the transport fluxes over w.
+struct MixtureSums<'a> {
+    arena: &'a Bump,
+    n: usize,
+    density: &'a [f32],
+    conservative: bool,
+}
+
+impl MixtureSums<'_> {
+    fn drift_velocities(&self, frac: &[&[f32]], frac_f: &[f32], v: [&mut [f32]; 3], w: [&mut [f32]; 3]) {
+        let (arena, n) = (self.arena, self.n);
+        let [ux, uy, uz] = v;
+        let [fx, fy, fz] = w;
+        let (sx, sy, sz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        let (mx, my, mz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+        {
+            let w = phase_vel(arena, fx, fy, fz, n);
+            let s = VelMut { x: &mut *sx, y: &mut *sy, z: &mut *sz };
+            let m = VelMut { x: &mut *mx, y: &mut *my, z: &mut *mz };
+            drift::mixture_velocity(frac, frac_f, self.density, w, s, m);
+        }
+        let (s, m) = (Vel { x: sx, y: sy, z: sz }, Vel { x: mx, y: my, z: mz });
+        let m = if self.conservative { Some(m) } else { None };
+        let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+        let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+        for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
+            drift::drift_velocity(frac[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
+        }
+    }
+}
+
+/// Per-phase views of three flat arrays holding phase k at `[k n, (k + 1) n)`.
+pub fn phase_vel<'a>(arena: &'a Bump, x: &'a [f32], y: &'a [f32], z: &'a [f32], n: usize) -> PhaseVel<'a> {
+    PhaseVel {
+        x: arena.alloc_slice_fill_iter(x.chunks(n.max(1))),
+        y: arena.alloc_slice_fill_iter(y.chunks(n.max(1))),
+        z: arena.alloc_slice_fill_iter(z.chunks(n.max(1))),
+    }
+}

@@ -1,0 +1,261 @@
+//! The pass interface: the passes of a step that a backend may run, and
+//! what each reads and writes (PHYSICS.md §6: pass 0's Morton sort and the
+//! tables built from its grid, pass 5's IISPH Jacobi loop, pass 10's drift
+//! velocities). The step asks its [`Passes`] for these and does not know
+//! which backend answers: the CPU backend ([`super::cpu::Cpu`]) runs them
+//! with the `porosph-kernels` passes; the GPU backend
+//! ([`super::gpu::GpuBackend`]) runs those its `--gpu-passes` select on the
+//! device and hands the others, and any pass whose device run fails, to the
+//! CPU. Every other pass of the step runs on the CPU.
+
+use super::gpu::GpuBackend;
+use super::BackendKind;
+use bumpalo::Bump;
+use porosph_kernels::grid::CellGrid;
+use porosph_kernels::iisph::{Rows, Vel, VelMut};
+use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::phases::PhaseConstants;
+
+/// The passes a backend runs for the step.
+pub trait Passes: Send {
+    /// Which backend this is.
+    fn kind(&self) -> BackendKind;
+
+    /// Pass 0: the Morton keys of the fluid positions (cells of
+    /// `1 / inv_cell`) and the permutation that sorts them: `sort` gets the
+    /// (key, index) pairs in ascending order, `perm` the indices (`keys` is
+    /// scratch). Returns the device time, ms (0 on the CPU).
+    fn sort(
+        &mut self,
+        fluid: Points,
+        inv_cell: f32,
+        keys: &mut Vec<u64>,
+        sort: &mut Vec<(u64, u32)>,
+        perm: &mut Vec<u32>,
+    ) -> f64;
+
+    /// The end of pass 0: what this backend's later passes of the step need
+    /// built from the step's grids (the GPU's cell-range tables; nothing on
+    /// the CPU). Returns the device time, ms.
+    fn prepare(&mut self, fluid_grid: &CellGrid, walls: WallInput, step: StepShape) -> f64;
+
+    /// Pass 5: the pressures that solve the system (warm-started from the
+    /// values in `x`), and the final pressure accelerations.
+    fn pressure_solve(&mut self, sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport;
+
+    /// Pass 10: the drift velocities and phase fluxes (P-Eq. 11), and with
+    /// porous solids the inner ones into `inner` (P-Eq. 12).
+    fn drift(&mut self, prob: &DriftProblem, out: DriftOutput, inner: Option<DriftOutput>, arena: &Bump)
+        -> DriftReport;
+
+    /// Why a device pass failed during the last step (the step completed on
+    /// the CPU; the run reports it as a step error).
+    fn take_error(&mut self) -> Option<String>;
+
+    /// The GPU backend, if this is one.
+    fn gpu(&self) -> Option<&GpuBackend> {
+        None
+    }
+}
+
+impl Default for Box<dyn Passes> {
+    /// The CPU backend.
+    fn default() -> Self {
+        Box::new(super::cpu::Cpu)
+    }
+}
+
+/// What kind of step the backend prepares for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepShape {
+    /// The fluid has particles.
+    pub fluid: bool,
+    /// There are solid particles (solid rows in the pressure solve).
+    pub solids: bool,
+    /// Two or more phases (the drift pass runs).
+    pub mixture: bool,
+}
+
+/// The walls of a step as the pressure solve sees them: the static wall
+/// grid and positions (sorted once), and the active walls (those with a
+/// fluid neighbour, ascending), the rows of the solve.
+#[derive(Clone, Copy)]
+pub struct WallInput<'a> {
+    pub grid: &'a CellGrid,
+    pub walls: Points<'a>,
+    pub active: &'a [u32],
+}
+
+/// The convergence settings of the Jacobi loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveSettings {
+    pub dt: f32,
+    /// Relaxation omega.
+    pub omega: f32,
+    pub min_iterations: u32,
+    pub max_iterations: u32,
+    /// Stop at this mean density error (fraction).
+    pub max_density_error: f32,
+    /// Number of fluid rows (a_ii != 0), the mean's divisor (at least 1).
+    pub rows_active: f32,
+}
+
+/// The system of pass 5 (P-Eqs. 25-29 with pressure boundaries, PHYSICS.md
+/// §2.2-2.4). The pair lists hold V̄_ij grad W_ij (`iisph::fluid_setup`).
+pub struct PressureSystem<'a> {
+    /// Kernel support H, m.
+    pub support: f32,
+    pub fluid_grid: &'a CellGrid,
+    pub fluid: Points<'a>,
+    pub walls: WallInput<'a>,
+    /// Fluid-fluid, fluid-wall and active-wall-fluid pairs.
+    pub ff: &'a PairLists,
+    pub fb: &'a PairLists,
+    pub bf: &'a PairLists,
+    /// Fluid current volume V and V/m.
+    pub vol: &'a [f32],
+    pub vm: &'a [f32],
+    /// Fluid rows (S, a_ii).
+    pub rows: Rows<'a>,
+    /// Current volume of every wall (0 for inactive walls), m^3.
+    pub vol_wall: &'a [f32],
+    /// Rows of the active walls.
+    pub wall_rows: Rows<'a>,
+    /// The solid rows, if the scene has solids.
+    pub solids: Option<SolidSystem<'a>>,
+    pub settings: SolveSettings,
+}
+
+/// The solid rows of pass 5, in the sorted solid order of the pair lists.
+pub struct SolidSystem<'a> {
+    /// Fluid-solid and solid-fluid pairs.
+    pub fs: &'a PairLists,
+    pub sf: &'a PairLists,
+    /// Solid rows (S, a_ii).
+    pub rows: Rows<'a>,
+    /// Elastic body of each solid particle.
+    pub body: &'a [u32],
+    /// 1/M of each body, 1/kg (0 for a body with fixed particles: it does
+    /// not move within the solve).
+    pub body_inv_mass: &'a [f32],
+}
+
+/// The unknowns of pass 5: the pressures (read as the warm start, written
+/// as the solution) and the final pressure accelerations of the fluid.
+pub struct Unknowns<'a> {
+    /// Fluid pressures, Pa.
+    pub p: &'a mut [f32],
+    /// Pressure of every wall (inactive walls: 0 on entry, left so), Pa.
+    pub p_wall: &'a mut [f32],
+    /// Pressures of the active walls (the order of `WallInput::active`), Pa.
+    pub p_active: &'a mut [f32],
+    /// Solid pressures (sorted order; empty without solids), Pa.
+    pub p_solid: &'a mut [f32],
+    /// Fluid a^p, m/s^2.
+    pub ap: VelMut<'a>,
+}
+
+/// How pass 5 went.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolveReport {
+    pub iterations: u32,
+    pub density_error: f32,
+    /// Restarts with a smaller omega after the error grew
+    /// (`iisph::Divergence`; CPU loop only).
+    pub restarts: u32,
+    /// Device time of the loop from timestamp queries, ms (None where the
+    /// loop ran on the CPU or the adapter has none).
+    pub gpu_ms: Option<f64>,
+    /// Submissions (host round trips) the loop took (GPU only).
+    pub submits: u32,
+}
+
+/// The problem of pass 10 (PHYSICS.md §4.1): the fluid sorted by the cells
+/// of `fluid_grid`, the pressure solve's pairs `ff` (V̄_ij grad W_ij) and,
+/// with porous solids, the pairs `ffb` with h^3 grad W_ij of the inner drift.
+pub struct DriftProblem<'a> {
+    pub input: DriftInput<'a>,
+    pub ff: &'a PairLists,
+    pub ffb: Option<&'a PairLists>,
+}
+
+/// What the drift pass reads.
+pub struct DriftInput<'a> {
+    /// Kernel support H, m.
+    pub support: f32,
+    pub fluid_grid: &'a CellGrid,
+    pub fluid: Points<'a>,
+    /// Current volume V of each particle (the volume of the harmonic pair
+    /// volumes the CPU pair lists are scaled by), m^3.
+    pub vol: &'a [f32],
+    /// alpha_k per phase.
+    pub alpha: &'a [&'a [f32]],
+    pub alpha_f: &'a [f32],
+    /// p / alpha_f (`drift::pressure_per_fraction`) for phase pressures
+    /// p_k = alphahat_k p; `None` for a shared pressure.
+    pub p_per_fraction: Option<&'a [f32]>,
+    pub a_visc: Vel<'a>,
+    pub a_p: Vel<'a>,
+    pub phases: &'a [PhaseConstants],
+    /// The conservative transport's fluxes F_k = w_k - alpha_k m.
+    pub conservative: bool,
+    /// Porous solids: P-Eq. 11's porous term and the inner drift (P-Eq. 12).
+    pub porous: Option<PorousDriftInput<'a>>,
+}
+
+/// The porous terms of the drift (PHYSICS.md §4.2): the outer phase
+/// velocities get -phi grad p^pore_fk (P-Eq. 11); the inner drift (P-Eq.
+/// 12) is the same pass over the inner fractions beta with sigma', no phase
+/// pressure, -tau' q_k,f, and every volume h^3.
+pub struct PorousDriftInput<'a> {
+    /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
+    pub grad_pore: [&'a [f32]; 3],
+    /// phi of P-Eq. 11, m^2/(Pa s).
+    pub pore_drift: f32,
+    /// beta_k per phase.
+    pub beta: &'a [&'a [f32]],
+    /// beta_f = sum_k beta_k.
+    pub beta_f: &'a [f32],
+    /// q_k,f, phase-major, m/s.
+    pub q: [&'a [f32]; 3],
+    /// tau' of P-Eq. 12.
+    pub inner_tau: f32,
+    /// sigma' of P-Eq. 12, m^2/s.
+    pub inner_sigma: f32,
+    /// h^3, the volume of the inner pairs' gradients h^3 grad W_ij, m^3.
+    pub cell_volume: f32,
+}
+
+/// What the drift pass writes, phase-major (phase k at `[k n, (k + 1) n)`):
+/// the drift velocities u_mk and the phase fluxes F_k, m/s.
+pub struct DriftOutput<'a> {
+    pub ux: &'a mut [f32],
+    pub uy: &'a mut [f32],
+    pub uz: &'a mut [f32],
+    pub fx: &'a mut [f32],
+    pub fy: &'a mut [f32],
+    pub fz: &'a mut [f32],
+}
+
+impl DriftOutput<'_> {
+    /// The same arrays, borrowed again.
+    pub fn reborrow(&mut self) -> DriftOutput<'_> {
+        DriftOutput {
+            ux: &mut *self.ux,
+            uy: &mut *self.uy,
+            uz: &mut *self.uz,
+            fx: &mut *self.fx,
+            fy: &mut *self.fy,
+            fz: &mut *self.fz,
+        }
+    }
+}
+
+/// How pass 10 went.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DriftReport {
+    /// Largest outer and inner drift speed, m/s.
+    pub max_speed: f32,
+    /// Device time, ms (0 on the CPU).
+    pub gpu_ms: f64,
+}

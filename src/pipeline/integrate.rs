@@ -1,0 +1,71 @@
+//! Passes 13-14 (P Alg. 4): symplectic Euler for the fluid and the solids,
+//! then the correction of the volume fractions.
+
+use super::mixture::NextFractions;
+use super::timing::{pass, PassTimes};
+use crate::store::{FluidStore, SolidStore};
+use bumpalo::Bump;
+use porosph_kernels::iisph::Vel;
+use porosph_kernels::integrate::{integrate, State};
+use porosph_kernels::phase_transport;
+
+/// Pass 13: u^{n+1} = u* + dt a (a = a^p and what the later passes added),
+/// x += dt u^{n+1}; solids: x += dt v^{n+1} (PHYSICS.md §3.3).
+pub(super) fn positions(
+    fluid: &mut FluidStore,
+    solids: &mut SolidStore,
+    u_star: Vel,
+    a: Vel,
+    dt: f32,
+    tm: &mut PassTimes,
+) {
+    tm.time(pass::INTEGRATE, || {
+        let s = State {
+            x: &mut fluid.x,
+            y: &mut fluid.y,
+            z: &mut fluid.z,
+            ux: &mut fluid.ux,
+            uy: &mut fluid.uy,
+            uz: &mut fluid.uz,
+        };
+        integrate(s, u_star, a, dt);
+        let sv = solids.vx.iter().zip(&solids.vy).zip(&solids.vz);
+        let sx = solids.x.iter_mut().zip(solids.y.iter_mut()).zip(solids.z.iter_mut());
+        for (((x, y), z), ((vx, vy), vz)) in sx.zip(sv) {
+            *x += dt * vx;
+            *y += dt * vy;
+            *z += dt * vz;
+        }
+    });
+}
+
+/// Pass 14's correction (P §6.4, P Alg. 4): negative fractions to 0, then
+/// every fraction of a particle scaled by one common factor so that
+/// sum_k (alpha_k + beta_k) = 1 (with porous solids alpha and beta
+/// together, keeping the alpha/beta split). Nothing with one phase and no
+/// porous solid.
+pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, arena: &Bump, tm: &mut PassTimes) {
+    let n = fluid.len();
+    if next.alpha.is_empty() {
+        return;
+    }
+    let np = fluid.alpha.len();
+    let porous = !next.beta.is_empty();
+    tm.time(pass::PHASE_CORRECTION, || {
+        let sets = if porous { 2 * np } else { np };
+        let all = arena.alloc_slice_fill_iter((0..sets).map(|k| {
+            if k < np {
+                &next.alpha[k * n..(k + 1) * n]
+            } else {
+                &next.beta[(k - np) * n..(k - np + 1) * n]
+            }
+        }));
+        let total = arena.alloc_slice_fill_copy(n, 0.0f32);
+        let largest = arena.alloc_slice_fill_copy(n, 0u32);
+        phase_transport::correction_sums(all, total, largest);
+        let outputs = fluid.alpha.iter_mut().chain(fluid.beta.iter_mut().take(if porous { np } else { 0 }));
+        for (k, a) in outputs.enumerate() {
+            phase_transport::correct(all[k], total, largest, k, a);
+        }
+    });
+}

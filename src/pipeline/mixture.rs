@@ -1,0 +1,206 @@
+//! Passes 10-12 of a step with two or more phases (PHYSICS.md §4; P
+//! Alg. 3's drift and transport): the drift velocities (P-Eq. 11; with
+//! porous solids its porous term and the inner drift of P-Eq. 12) on the
+//! step's backend, the drift momentum term a^Dm (PHYSICS.md §4.1, sign per
+//! §8.15), and the transport of the outer fractions over the pressure
+//! solve's pairs and of the inner ones (P-Eqs. 6-7) over the h^3 pairs, at
+//! the old positions.
+
+use super::phases::PhaseState;
+use super::porous::PoreTerms;
+use super::prediction::Prediction;
+use super::timing::{pass, PassTimes};
+use super::{Params, Workspace};
+use crate::backend::cpu::phase_vel;
+use crate::backend::passes::{DriftInput, DriftOutput, DriftProblem, PorousDriftInput};
+use crate::store::FluidStore;
+use bumpalo::Bump;
+use porosph_kernels::drift;
+use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
+use porosph_kernels::iisph::{Vel, VelMut};
+use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::phase_transport;
+use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use rayon::prelude::*;
+
+/// The fractions after the transport, phase k at `[k n, (k + 1) n)`.
+pub(super) struct NextFractions<'a> {
+    pub alpha: &'a mut [f32],
+    /// Empty without porous solids.
+    pub beta: &'a mut [f32],
+}
+
+/// Passes 10-12, or with one phase and porous solids just the fractions as
+/// they are (nothing drifts; they change only by absorption); with one
+/// phase and no porous solid nothing. Adds a^Dm to `ap`, which holds a^p
+/// (+ a^pore + a^cap) on entry, the drift's a = -(a^visc + ap). Returns
+/// the next fractions and the largest drift speed, m/s.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn drift_and_transport<'a>(
+    p: &Params,
+    fluid: &FluidStore,
+    w: &mut Workspace,
+    ph: &PhaseState,
+    vol: &[f32],
+    pred: &Prediction,
+    terms: Option<&PoreTerms>,
+    ap: [&mut [f32]; 3],
+    dt: f32,
+    arena: &'a Bump,
+    tm: &mut PassTimes,
+) -> (NextFractions<'a>, f32) {
+    let n = fluid.len();
+    let np = fluid.alpha.len();
+    let mixture = p.mixture() && n > 0;
+    let porous = terms.is_some();
+    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
+    let nt = if mixture || porous { n } else { 0 };
+    let alpha_next = zeros(np * nt);
+    let beta_next = zeros(if porous { np * n } else { 0 });
+    if !mixture {
+        if porous {
+            alpha_next.copy_from_slice(&fluid.alpha[0]);
+            beta_next.copy_from_slice(&fluid.beta[0]);
+        }
+        return (NextFractions { alpha: alpha_next, beta: beta_next }, 0.0);
+    }
+    let [apx, apy, apz] = ap;
+    let alpha: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
+    // Pass 10: u_mk and the phase fluxes F_k, outer and (porous) inner.
+    let [ux, uy, uz, fx, fy, fz] = [(); 6].map(|_| zeros(np * n));
+    let ni = if porous { np * n } else { 0 };
+    let [bx, by, bz, gx, gy, gz] = [(); 6].map(|_| zeros(ni));
+    let (beta, beta_f): (&[&[f32]], &[f32]) = if porous {
+        let beta = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
+        (beta, arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
+    } else {
+        (&[], &[])
+    };
+    let report = tm.time(pass::DRIFT, || {
+        let pf = zeros(if p.fraction_pressure { n } else { 0 });
+        if p.fraction_pressure {
+            drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
+        }
+        let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
+            density: p.phase_density[k],
+            tau: p.phase_drift_tau[k],
+            sigma: p.phase_drift_sigma[k],
+        }));
+        let prob = DriftProblem {
+            input: DriftInput {
+                support: p.kernel.support,
+                fluid_grid: &w.fluid_grid,
+                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                vol,
+                alpha,
+                alpha_f: ph.alpha_f,
+                p_per_fraction: p.fraction_pressure.then_some(&*pf),
+                a_visc: pred.a_visc,
+                a_p: Vel { x: apx, y: apy, z: apz },
+                phases,
+                conservative: p.conservative_transport,
+                porous: terms.map(|t| PorousDriftInput {
+                    grad_pore: t.grad_pore,
+                    pore_drift: p.pore_drift,
+                    beta,
+                    beta_f,
+                    q: t.q,
+                    inner_tau: p.inner_drift_tau,
+                    inner_sigma: p.inner_drift_sigma,
+                    cell_volume: p.cell_volume(),
+                }),
+            },
+            ff: &w.ff,
+            ffb: porous.then_some(&w.ffb),
+        };
+        let out = DriftOutput { ux: &mut *ux, uy: &mut *uy, uz: &mut *uz, fx: &mut *fx, fy: &mut *fy, fz: &mut *fz };
+        let inner = porous.then_some(DriftOutput {
+            ux: &mut *bx,
+            uy: &mut *by,
+            uz: &mut *bz,
+            fx: &mut *gx,
+            fy: &mut *gy,
+            fz: &mut *gz,
+        });
+        w.backend.drift(&prob, out, inner, arena)
+    });
+    tm.gpu_ms[pass::DRIFT] = report.gpu_ms;
+    let u_drift = phase_vel(arena, ux, uy, uz, n);
+
+    // Pass 11: a^Dm, added to a^p.
+    if p.drift_momentum_sign != 0.0 {
+        tm.time(pass::DRIFT_MOMENTUM, || {
+            let (dx, dy, dz) = (zeros(n), zeros(n), zeros(n));
+            let inp = DriftMomentumInput {
+                ff: &w.ff,
+                alpha,
+                u_drift,
+                density: &p.phase_density,
+                rest_density: ph.rest_density,
+                sign: p.drift_momentum_sign,
+            };
+            drift_momentum(&inp, VelMut { x: &mut *dx, y: &mut *dy, z: &mut *dz });
+            for (a, d) in [(&mut *apx, &*dx), (&mut *apy, &*dy), (&mut *apz, &*dz)] {
+                a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
+            }
+        });
+    }
+
+    // Pass 12: transport of every phase at the old positions (P-Eq. 2).
+    tm.time(pass::PHASE_TRANSPORT, || {
+        let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
+        let (pair_limit, pair_flux) = (&mut w.pair_limit, &mut w.pair_flux);
+        let mut tr = Transport { p, arena, n, dt, u, pair_limit, pair_flux };
+        tr.run(&w.ff, alpha, phase_vel(arena, fx, fy, fz, n), alpha_next);
+        if porous {
+            tr.run(&w.ffb, beta, phase_vel(arena, gx, gy, gz, n), beta_next);
+        }
+    });
+    (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed)
+}
+
+/// The volume-fraction transport of pass 12 for one set of fractions.
+struct Transport<'a, 'b> {
+    p: &'a Params,
+    arena: &'a Bump,
+    n: usize,
+    dt: f32,
+    u: Vel<'a>,
+    /// Per block of pairs: the pair limit of the conservative transport.
+    pair_limit: &'b mut Vec<Vec<f32>>,
+    /// Per phase, per block of pairs: the conservative pair fluxes.
+    pair_flux: &'b mut Vec<Vec<Vec<f32>>>,
+}
+
+impl Transport<'_, '_> {
+    /// Moves the fractions `frac` (per phase) by the fluxes `flux` over the
+    /// pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
+    fn run(&mut self, ff: &PairLists, frac: &[&[f32]], flux: PhaseVel, next: &mut [f32]) {
+        let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
+        if self.p.conservative_transport {
+            let nb = ff.used().len();
+            let (pair_limit, pair_flux) = (&mut *self.pair_limit, &mut *self.pair_flux);
+            pair_flux.resize_with(np, Vec::new);
+            for f in pair_flux.iter_mut() {
+                f.resize_with(nb.max(f.len()), Vec::new);
+            }
+            if pair_limit.len() < nb {
+                pair_limit.resize_with(nb, Vec::new);
+            }
+            let limit = arena.alloc_slice_fill_copy(np * n, 0.0f32);
+            for (k, (l, phi)) in limit.chunks_mut(n).zip(pair_flux.iter_mut()).enumerate() {
+                phase_transport::outflow_limit(ff, frac[k], flux.phase(k), dt, l, &mut phi[..nb]);
+            }
+            let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
+            let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
+            phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
+            for (k, out) in next.chunks_mut(n).enumerate() {
+                phase_transport::transport(ff, frac[k], phi[k], &pair_limit[..nb], dt, out);
+            }
+        } else {
+            for (k, out) in next.chunks_mut(n).enumerate() {
+                phase_transport::transport_reference(ff, self.u, frac[k], flux.phase(k), dt, out);
+            }
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! Pass 0 (P Alg. 1's neighbour search; PHYSICS.md §0, §6): the Morton sort
+//! of the fluid (keys and sort by the backend), the fluid cell grid, the
+//! pairs FF, fluid-wall and active-wall-fluid, the active walls (those with
+//! a fluid neighbour: the wall rows of the pressure solve, PHYSICS.md
+//! §2.4), and with solids the solids' Morton order and the pairs FS, SF, SS
+//! and solid-wall. Everything it builds lives in the [`Workspace`].
+
+use super::timing::{pass, PassTimes};
+use super::{Params, Workspace};
+use crate::backend::passes::{StepShape, WallInput};
+use crate::store::{FluidStore, SolidStore, WallStore};
+use bumpalo::Bump;
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
+
+/// Pass 0 for the fluid, walls and solids. The fluid store is reordered
+/// along the Morton curve; solids keep their store order (the pair lists
+/// see them in a sorted copy, `w.solid_perm`).
+pub(super) fn search(
+    p: &Params,
+    fluid: &mut FluidStore,
+    walls: &WallStore,
+    solids: &SolidStore,
+    w: &mut Workspace,
+    arena: &Bump,
+    tm: &mut PassTimes,
+) {
+    let support = p.kernel.support;
+    let mut gpu_ms = 0.0;
+    tm.time(pass::NEIGHBORS, || {
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        gpu_ms += w.backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
+        if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
+            fluid.reorder(&w.perm, &mut w.reorder);
+        }
+        w.keys.clear();
+        w.keys.extend(w.sort.iter().map(|&(k, _)| k));
+        w.fluid_grid.build(&w.keys, support);
+        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+        build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+        active_walls(walls.len(), w);
+        let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
+        let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
+        let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
+        build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
+        if !solids.is_empty() {
+            solid_pairs(p, fluid, solids, walls, w);
+        }
+        let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
+        let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
+        gpu_ms += w.backend.prepare(&w.fluid_grid, walls, shape);
+    });
+    tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
+}
+
+/// The active walls, in wall order: the targets of the fluid-wall pairs
+/// with a positive kernel weight.
+fn active_walls(nw: usize, w: &mut Workspace) {
+    w.wall_flag.resize(nw, 0);
+    for &b in &w.active {
+        w.wall_flag[b as usize] = 0;
+    }
+    for blk in w.fb.used() {
+        for (&b, &wt) in blk.j.iter().zip(&blk.w) {
+            if wt > 0.0 {
+                w.wall_flag[b as usize] = 1;
+            }
+        }
+    }
+    w.active.clear();
+    w.active.extend((0..nw as u32).filter(|&b| w.wall_flag[b as usize] != 0));
+}
+
+/// Pass 0 for solids: Morton order of the solid positions (a sorted copy;
+/// the store keeps its order), the solid grid, and the fluid-solid,
+/// solid-fluid, solid-solid and solid-wall pairs (solids in the sorted order).
+fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &WallStore, w: &mut Workspace) {
+    let ns = solids.len();
+    let support = p.kernel.support;
+    w.solid_keys.resize(ns, 0);
+    compute_keys(&solids.x, &solids.y, &solids.z, 1.0 / support, &mut w.solid_keys);
+    sort_permutation(&w.solid_keys, &mut w.solid_sort, &mut w.solid_perm);
+    w.solid_keys.clear();
+    w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));
+    w.solid_grid.build(&w.solid_keys, support);
+    for (dst, src) in w.solid_sorted.iter_mut().zip([&solids.x, &solids.y, &solids.z]) {
+        dst.clear();
+        dst.extend(w.solid_perm.iter().map(|&i| src[i as usize]));
+    }
+    if w.solid_rows.len() != ns {
+        w.solid_rows.clear();
+        w.solid_rows.extend(0..ns as u32);
+    }
+    let [sx, sy, sz] = &w.solid_sorted;
+    let sp = Points { x: sx, y: sy, z: sz };
+    let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+    build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
+    build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
+    build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+    build_pairs(&mut w.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+}
