@@ -154,7 +154,7 @@ impl Doc<'_> {
     }
 
     /// A serde error from reading the document into the scene types.
-    pub fn from_serde(&self, e: serde_path_to_error::Error<toml::de::Error>) -> SceneError {
+    pub fn serde_error(&self, e: serde_path_to_error::Error<toml::de::Error>) -> SceneError {
         use serde_path_to_error::Segment;
         let path = KeyPath(
             e.path()

@@ -145,7 +145,7 @@ impl TriMesh {
             })
             .sum();
         let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        if !(volume.abs() > 1e-9 * extent.powi(3)) {
+        if volume.is_nan() || volume.abs() <= 1e-9 * extent.powi(3) {
             return Err(format!(
                 "degenerate: the surface encloses no volume ({volume:e} m^3 within a bounding box of {:?} to {:?})",
                 lo.map(|c| c as f32),
@@ -569,9 +569,12 @@ fn closest_on_triangle(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
     at([0, 1, 2].map(|k| a[k] + ab[k] * v + ac[k] * w))
 }
 
+/// Vertices and triangles (indices into the vertices), as read from a file.
+type Triangles = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
 /// The vertices and triangles of an OBJ file (all its objects; polygons
 /// split into triangles; materials are not read).
-fn read_obj(path: &std::path::Path) -> Result<(Vec<[f32; 3]>, Vec<[u32; 3]>), String> {
+fn read_obj(path: &std::path::Path) -> Result<Triangles, String> {
     let file = fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let options =
         tobj::LoadOptions { triangulate: true, ignore_points: true, ignore_lines: true, ..Default::default() };
@@ -588,7 +591,7 @@ fn read_obj(path: &std::path::Path) -> Result<(Vec<[f32; 3]>, Vec<[u32; 3]>), St
 }
 
 /// The vertices and triangles of an STL file, ASCII or binary.
-fn read_stl(path: &std::path::Path) -> Result<(Vec<[f32; 3]>, Vec<[u32; 3]>), String> {
+fn read_stl(path: &std::path::Path) -> Result<Triangles, String> {
     let mut file = fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let mesh = stl_io::read_stl(&mut file).map_err(|e| format!("not a readable STL file: {e}"))?;
     let vertices = mesh.vertices.iter().map(|v| v.0).collect();

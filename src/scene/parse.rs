@@ -69,7 +69,7 @@ impl Scene {
             return Err(doc.err(&top, "the scene is empty; it needs a [simulation] table and at least one [[phase]]"));
         }
         let de = toml::de::Deserializer::from(root.clone());
-        let file: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| doc.from_serde(e))?;
+        let file: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| doc.serde_error(e))?;
         check_numbers(&doc)?;
         let base = match Path::new(origin).parent() {
             Some(dir) if !origin.starts_with('<') => dir.to_path_buf(),
