@@ -95,6 +95,9 @@ enum Command {
     },
     /// List the built-in scenes and the example scenes in ./scenes.
     Scenes,
+    /// Print the JSON Schema of scene files (the scene reference, for
+    /// editors: docs/scene.schema.json holds the same).
+    Schema,
     /// Print what a frame or checkpoint file holds; for a checkpoint, also
     /// check every dataset's checksum (exit status 1 if one fails).
     Inspect {
@@ -552,6 +555,10 @@ fn main() -> ExitCode {
                     }
                 }
             }
+            Ok(())
+        }
+        Command::Schema => {
+            print!("{}", porosph::scene::schema_text());
             Ok(())
         }
         Command::Inspect { file } => inspect_command(&file),

@@ -659,9 +659,9 @@ fn unknown_key_in_solid_porous_suggests_the_right_one() {
 #[test]
 fn porosity_out_of_range() {
     let text = porous_edited("porosity = 0.6", "porosity = 0.0");
-    assert_rejected(&text, "solid[0].porous.porosity", "the porosity e (0 < e <= 1) > 0, found 0");
+    assert_rejected(&text, "solid[0].porous.porosity", "expected the porosity e in (0, 1], found 0");
     let text = porous_edited("porosity = 0.6", "porosity = 1.5");
-    assert_rejected(&text, "solid[0].porous.porosity", "expected the porosity e (0 < e <= 1), found 1.5");
+    assert_rejected(&text, "solid[0].porous.porosity", "expected the porosity e in (0, 1], found 1.5");
     let text = porous_edited("porosity = 0.6", "porosity = -0.2");
     assert_rejected(&text, "solid[0].porous.porosity", "found -0.2");
     let text = porous_edited("porosity = 0.6", "porosity = \"0.6\"");
@@ -713,4 +713,57 @@ fn missing_rest_pore_pressure() {
     );
     let text = porous_edited("permeability = 1e-7\n", "");
     assert_rejected(&text, "solid[0].porous.phase.water.permeability", "missing required key `permeability`");
+}
+
+#[test]
+fn errors_give_the_line_and_column_of_the_key_or_value() {
+    // MINIMAL starts with a newline: `[simulation]` is line 2.
+    let text = edited("density = 1000.0", "density = \"1000\"");
+    let e = parse(&text).unwrap_err();
+    assert_eq!(e.position, Some((9, 11)), "{e}");
+    assert!(e.to_string().starts_with("test.toml:9:11: key `phase[0].density`: expected"), "{e}");
+    // An unknown key: the key itself.
+    let text = edited("velocity = [0.0, 0.0, 0.0]", "veloctiy = [0.0, 0.0, 0.0]");
+    assert_eq!(parse(&text).unwrap_err().position, Some((15, 1)));
+    // A number out of range inside an array: the element.
+    let text = edited("max = [0.2, 0.4, 0.1]", "max = [0.2, nan, 0.1]");
+    assert_eq!(parse(&text).unwrap_err().position, Some((13, 44)));
+    // A missing key: the table that lacks it.
+    let text = edited("end_time = 1.0\n", "");
+    assert_eq!(parse(&text).unwrap_err().position, Some((2, 1)));
+    // A check of two values: the key named.
+    let text = edited("max_dt = 0.002", "max_dt = 2.0");
+    assert_eq!(parse(&text).unwrap_err().position, Some((5, 10)));
+}
+
+#[test]
+fn mesh_keys_are_checked_like_the_other_shapes() {
+    let box_line = "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nfractions";
+    let text = edited(box_line, "mesh = { path = \"cube.obj\", scal = 2.0 }\nfractions");
+    assert_rejected(
+        &text,
+        "fluid[0].mesh.scal",
+        "unknown key `scal` (did you mean `scale`?); allowed here: path, scale, translate",
+    );
+    let text = edited(box_line, "mesh = { scale = 2.0 }\nfractions");
+    assert_rejected(
+        &text,
+        "fluid[0].mesh.path",
+        "missing required key `path` (expected the mesh file, relative to the scene file)",
+    );
+    let text = edited(box_line, "mesh = { path = \"cube.obj\", scale = -1 }\nfractions");
+    assert_rejected(&text, "fluid[0].mesh.scale", "> 0, found -1");
+    let text = edited(box_line, "mesh = { path = \"cube.obj\", translate = [0, 1] }\nfractions");
+    assert_rejected(
+        &text,
+        "fluid[0].mesh.translate",
+        "as an array of 3 numbers [x, y, z], found an array of 2 elements",
+    );
+    let text = edited(box_line, "mesh = { path = \"no/such/mesh.obj\" }\nfractions");
+    assert_rejected(&text, "fluid[0].mesh.path", "mesh file no/such/mesh.obj: cannot read: No such file");
+    let text = edited(
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\n",
+        "box = { min = [0.0, 0.0, 0.0], max = [0.2, 0.4, 0.1] }\nmesh = { path = \"a.stl\" }\n",
+    );
+    assert_rejected(&text, "fluid[0]", "found both `box` and `mesh`");
 }

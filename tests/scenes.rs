@@ -117,3 +117,17 @@ fn default_scene_runs_for_a_fifth_of_a_second() {
         .fold(0.0f32, f32::max);
     assert!(max_speed < 10.0, "max fluid speed {max_speed} m/s");
 }
+
+#[test]
+fn an_example_solid_comes_from_a_mesh() {
+    // scenes/mesh_dumbbell.toml: scenes/meshes/dumbbell.obj, a dumbbell of
+    // 1.075e-3 m^3 (scripts/dumbbell_mesh.py), about that many d^3 cells.
+    let p = scenes_dir().join("mesh_dumbbell.toml");
+    let scene = Scene::from_file(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert!(matches!(scene.solids[0].shape, porosph::scene::Shape::Mesh(_)), "{:?}", scene.solids[0].shape);
+    let sim = Simulation::new(scene);
+    let n = sim.solids.len() as f64;
+    assert!((n - 1075.0).abs() / 1075.0 < 0.05, "{n} solid particles");
+    let readme = std::fs::read_to_string(scenes_dir().join("README.md")).expect("scenes/README.md");
+    assert!(readme.contains("mesh_dumbbell.toml"), "scenes/README.md does not list the mesh example");
+}

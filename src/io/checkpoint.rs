@@ -48,10 +48,9 @@ use crate::store::{Column, ColumnMut, FluidStore, SolidStore, WallStore};
 use hdf5::dataset::Layout;
 use hdf5::types::{FixedUnicode, TypeDescriptor};
 use hdf5::{Dataset, File, Group, H5Type, Location};
-use std::ffi::OsString;
 use std::fmt::{self, Display, Write as _};
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The value of the root attribute `format`.
 pub const FORMAT: &str = "porosph checkpoint";
@@ -138,44 +137,19 @@ impl Display for DatasetCheck {
 ///
 /// The file is first written to `.<name>.tmp` in the same directory, closed
 /// (HDF5 flushes), synced to disk, and only then renamed over `path`; the
-/// directory is synced after the rename. A crash at any moment leaves either
-/// no file or a complete one at `path`. On error (unwritable directory, full
-/// disk) the temporary file is removed and nothing else is touched.
+/// directory is synced after the rename ([`super::atomic::write_with`]). A
+/// crash at any moment leaves either no file or a complete one at `path`. On
+/// error (unwritable directory, full disk) the temporary file is removed and
+/// nothing else is touched.
 ///
 /// `failure` marks a diagnostic checkpoint written when a step failed.
 pub fn write_checkpoint(path: &Path, sim: &Simulation, run: &RunInfo, failure: Option<&str>) -> Result<(), IoError> {
-    let tmp = temp_path(path)?;
-    let written = write_file(&tmp, sim, run, failure)
-        .and_then(|()| sync_file(&tmp))
-        .and_then(|()| fs::rename(&tmp, path).map_err(|e| format!("cannot rename {} to it: {e}", tmp.display())));
-    if let Err(reason) = written {
-        // Best effort: the temporary file may not exist (creation failed).
-        let _ = fs::remove_file(&tmp);
-        return Err(IoError::new(path, reason));
-    }
-    // Makes the rename itself durable; best effort (the file is complete
-    // either way, and some file systems cannot sync a directory).
-    if let Some(dir) = path.parent() {
-        let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
-        let _ = fs::File::open(dir).and_then(|d| d.sync_all());
-    }
-    Ok(())
+    super::atomic::write_with(path, |tmp| write_file(tmp, sim, run, failure))
 }
 
 /// `.<file name>.tmp` next to `path`: the name a checkpoint has while it is
 /// being written.
-pub fn temp_path(path: &Path) -> Result<PathBuf, IoError> {
-    let name = path.file_name().ok_or_else(|| IoError::new(path, "not a file name"))?;
-    let mut tmp = OsString::from(".");
-    tmp.push(name);
-    tmp.push(".tmp");
-    Ok(path.with_file_name(tmp))
-}
-
-/// Forces the closed file's data to disk before the rename makes it visible.
-fn sync_file(tmp: &Path) -> Result<(), String> {
-    fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| format!("cannot sync {}: {e}", tmp.display()))
-}
+pub use super::atomic::temp_path;
 
 /// Adds what was being done to an HDF5 error.
 trait Context<T> {

@@ -2,6 +2,7 @@
 //! index, per-step statistics, checkpoints (complete state, HDF5), and
 //! reading them back for `porosph inspect` and `porosph resume`.
 
+pub mod atomic;
 pub mod checkpoint;
 pub mod h5;
 mod series;

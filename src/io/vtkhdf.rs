@@ -24,10 +24,9 @@ use hdf5::plist::group_create::LinkCreationOrder;
 use hdf5::types::{FixedAscii, FixedUnicode, TypeDescriptor, VarLenAscii, VarLenUnicode};
 use hdf5::types::{FloatSize, IntSize};
 use hdf5::{Dataset, File, Group, H5Type, IndexType, IterationOrder, Location};
-use std::ffi::OsString;
 use std::fmt::{self, Display, Write as _};
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// VTKHDF format version written to `/VTKHDF@Version`; PolyData needs >= 2.0.
 const VERSION: [i64; 2] = [2, 2];
@@ -38,19 +37,12 @@ const TOPOLOGIES: [&str; 4] = ["Vertices", "Lines", "Polygons", "Strips"];
 /// Writes one frame to `path` (via a temporary name and a rename).
 ///
 /// The file is first written to `.<name>.tmp` in the same directory, closed
-/// and synced, then renamed over `path`: a crash leaves either the old file
-/// or the new one, never a torn frame. On error the temporary file is removed.
+/// and synced, then renamed over `path` ([`super::atomic::write_with`]): a
+/// crash leaves either the old file or the new one, never a torn frame. On
+/// error the temporary file is removed.
 pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), IoError> {
     check_frame(frame).map_err(|reason| IoError::new(path, reason))?;
-    let tmp = temp_path(path)?;
-    let written = write_file(&tmp, frame)
-        .and_then(|()| sync_file(&tmp))
-        .and_then(|()| fs::rename(&tmp, path).map_err(|e| format!("cannot rename {} to it: {e}", tmp.display())));
-    written.map_err(|reason| {
-        // Best effort: the temporary file may not exist (creation failed).
-        let _ = fs::remove_file(&tmp);
-        IoError::new(path, reason)
-    })
+    super::atomic::write_with(path, |tmp| write_file(tmp, frame))
 }
 
 /// Reads a frame written by [`write_frame`].
@@ -196,15 +188,6 @@ fn dtype_name(data: &ArrayData) -> &'static str {
     }
 }
 
-/// `.<file name>.tmp` next to `path`.
-fn temp_path(path: &Path) -> Result<PathBuf, IoError> {
-    let name = path.file_name().ok_or_else(|| IoError::new(path, "not a file name"))?;
-    let mut tmp = OsString::from(".");
-    tmp.push(name);
-    tmp.push(".tmp");
-    Ok(path.with_file_name(tmp))
-}
-
 /// Rejects frames that would write an inconsistent or unreadable file.
 fn check_frame(frame: &Frame) -> Result<(), String> {
     let n = frame.points.len();
@@ -250,11 +233,6 @@ fn write_file(tmp: &Path, frame: &Frame) -> Result<(), String> {
     write_contents(&file, frame)?;
     // Closing flushes: a full disk may only show up here.
     file.close().ctx(format_args!("cannot close {}", tmp.display()))
-}
-
-/// Forces the closed file's data to disk before the rename makes it visible.
-fn sync_file(tmp: &Path) -> Result<(), String> {
-    fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| format!("cannot sync {}: {e}", tmp.display()))
 }
 
 fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {

@@ -326,17 +326,11 @@ impl Image {
         Ok(out)
     }
 
-    /// Writes the image as a PNG file (to a temporary name, then renamed).
+    /// Writes the image as a PNG file (to a temporary name, synced, then
+    /// renamed: [`crate::io::atomic::write_bytes`]).
     pub fn write_png(&self, path: &Path) -> Result<(), IoError> {
         let bytes = self.encode_png().map_err(|e| IoError::new(path, e))?;
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = std::path::PathBuf::from(tmp);
-        std::fs::write(&tmp, bytes).map_err(|e| IoError::new(path, format!("cannot write: {e}")))?;
-        std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            IoError::new(path, format!("cannot write: {e}"))
-        })
+        crate::io::atomic::write_bytes(path, &bytes)
     }
 }
 

@@ -5,7 +5,8 @@
 //! - a box is sampled on its own lattice, `x = min + (i + 1/2) d` per axis with
 //!   `i in 0..n`, `n = round((max - min) / d)`. When `(max - min) / d` is not an
 //!   integer the box is snapped: it is treated as `n d` long from `min`;
-//! - spheres and cylinders are sampled on the global lattice `x = (i + 1/2) d`.
+//! - spheres, cylinders and meshes are sampled on the global lattice
+//!   `x = (i + 1/2) d`.
 //!
 //! Walls are sampled as a shell two layers deep, the width of the kernel
 //! support H = 2 d: wall particles deeper inside a solid are never neighbours of
@@ -77,16 +78,12 @@ pub fn sample_fluid(scene: &Scene, walls: &SampledWalls) -> SampledFluid {
     for &p in &solid_particles.positions {
         solid_grid.insert(p);
     }
-    let in_solid =
-        |p: [f32; 3]| scene.solids.iter().any(|s| sdf(&s.shape, p) <= 0.0) || solid_grid.any_within(p, 0.75 * d);
+    let in_solid = |p: [f32; 3]| scene.solids.iter().any(|s| inside(&s.shape, p)) || solid_grid.any_within(p, 0.75 * d);
     for block in &scene.fluids {
         let mut candidates = Vec::new();
-        match &block.shape {
-            Shape::Box { min, max } => box_lattice(min, max, d, None, &mut candidates),
-            shape => global_lattice(shape, d, &mut candidates, |s| s <= 0.0),
-        }
+        filled(&block.shape, d, &mut candidates);
         for p in candidates {
-            if solids.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) || in_solid(p) {
+            if solids.iter().any(|w| inside(&w.shape, p)) || grid.any_within(p, min_dist) || in_solid(p) {
                 continue;
             }
             grid.insert(p);
@@ -116,19 +113,16 @@ pub fn sample_solids(scene: &Scene, walls: &SampledWalls) -> SampledSolids {
     let obstacles: Vec<&Wall> = scene.walls.iter().filter(|w| !w.container).collect();
     for (b, solid) in scene.solids.iter().enumerate() {
         let mut candidates = Vec::new();
-        match &solid.shape {
-            Shape::Box { min, max } => box_lattice(min, max, d, None, &mut candidates),
-            shape => global_lattice(shape, d, &mut candidates, |s| s <= 0.0),
-        }
+        filled(&solid.shape, d, &mut candidates);
         for p in candidates {
-            if obstacles.iter().any(|w| sdf(&w.shape, p) <= 0.0) || grid.any_within(p, min_dist) {
+            if obstacles.iter().any(|w| inside(&w.shape, p)) || grid.any_within(p, min_dist) {
                 continue;
             }
             grid.insert(p);
             out.positions.push(p);
             out.velocities.push(solid.velocity);
             out.body.push(b as u32);
-            out.fixed.push(solid.fixed.as_ref().is_some_and(|f| sdf(f, p) <= 0.0) as u32);
+            out.fixed.push(solid.fixed.as_ref().is_some_and(|f| inside(f, p)) as u32);
         }
     }
     out
@@ -146,8 +140,9 @@ pub fn sample_solids(scene: &Scene, walls: &SampledWalls) -> SampledSolids {
 ///   documentation.
 /// - A solid box (an obstacle) gets its lattice points within two layers of
 ///   its faces (index < 2 or >= n - 2 on some axis).
-/// - A solid sphere or cylinder gets the global lattice points `(i + 1/2) d`
-///   with signed distance in (-2 d, 0]: a shell two particles deep.
+/// - A solid sphere, cylinder or mesh gets the global lattice points
+///   `(i + 1/2) d` with signed distance in (-2 d, 0]: a shell two particles
+///   deep (for an axis-aligned cube mesh, the particles of the same box).
 ///
 /// A point closer than d / 2 to a point of an earlier wall is dropped.
 pub fn sample_walls(scene: &Scene) -> SampledWalls {
@@ -162,6 +157,10 @@ pub fn sample_walls(scene: &Scene) -> SampledWalls {
         match &wall.shape {
             Shape::Box { min, max } if wall.container => container_lattice(min, max, d, wall.open_top, &mut candidates),
             Shape::Box { min, max } => box_lattice(min, max, d, Some(2), &mut candidates),
+            // Inside, and nearer the surface than two spacings.
+            Shape::Mesh(m) => {
+                m.lattice_inside(d, &mut candidates, |p| m.distance_below(p.map(f64::from), 2.0 * d).is_some())
+            }
             shape => global_lattice(shape, d, &mut candidates, |s| s > -2.0 * d && s <= 0.0),
         }
         for p in candidates {
@@ -174,12 +173,32 @@ pub fn sample_walls(scene: &Scene) -> SampledWalls {
     out
 }
 
+/// The lattice points a fluid block or solid of `shape` takes: a box its
+/// own lattice, the other shapes the global lattice points inside them.
+fn filled(shape: &Shape, d: f64, out: &mut Vec<[f32; 3]>) {
+    match shape {
+        Shape::Box { min, max } => box_lattice(min, max, d, None, out),
+        Shape::Mesh(m) => m.lattice_inside(d, out, |_| true),
+        shape => global_lattice(shape, d, out, |s| s <= 0.0),
+    }
+}
+
+/// Whether `p` is inside `shape` (signed distance <= 0; for a mesh, its
+/// winding number, without the distance).
+fn inside(shape: &Shape, p: [f32; 3]) -> bool {
+    match shape {
+        Shape::Mesh(m) => m.contains(p.map(f64::from)),
+        shape => sdf(shape, p) <= 0.0,
+    }
+}
+
 /// Signed distance from `p` to the surface of `shape`, m: negative inside,
-/// positive outside, exact for all three shapes (the cylinder is capped at
-/// both ends).
+/// positive outside, exact for all four shapes (the cylinder is capped at
+/// both ends; a mesh's distance is to its nearest triangle).
 pub fn sdf(shape: &Shape, p: [f32; 3]) -> f32 {
     let p = p.map(f64::from);
     let dist = match shape {
+        Shape::Mesh(m) => m.signed_distance(p),
         Shape::Box { min, max } => {
             // Standard box distance: q = |p - centre| - half extent per axis.
             let mut q = [0.0; 3];
@@ -319,6 +338,7 @@ fn global_lattice(shape: &Shape, d: f64, out: &mut Vec<[f32; 3]>, keep: impl Fn(
 /// Axis-aligned bounding box of a shape, m.
 fn bounds(shape: &Shape) -> ([f64; 3], [f64; 3]) {
     match shape {
+        Shape::Mesh(m) => m.bounds(),
         Shape::Box { min, max } => (min.map(f64::from), max.map(f64::from)),
         Shape::Sphere { center, radius } => {
             let r = f64::from(*radius);

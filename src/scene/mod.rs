@@ -6,12 +6,20 @@
 //! names the file, the key (a dotted path such as `fluid[1].box.min`) and the
 //! reason. Nothing here panics on user input.
 
+mod errors;
+mod file;
 mod geometry;
+mod mesh;
 mod parse;
 
+pub use file::{schema, schema_text};
 pub use geometry::{sample_fluid, sample_solids, sample_walls, sdf, SampledFluid, SampledSolids, SampledWalls};
+pub use mesh::{MeshSource, TriMesh};
 
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use std::fmt;
+use std::sync::Arc;
 
 /// A parsed, validated scene. All lengths in m, times in s, SI units throughout.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,65 +41,194 @@ pub struct Scene {
 }
 
 /// `[simulation]`: global settings.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// The first line of each field's doc comment is what error messages and
+/// the JSON Schema (`porosph schema`) call the value: a noun phrase with
+/// its unit.
+#[derive(Clone, Debug, PartialEq, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct Simulation {
-    /// Particle spacing d = h, m. The kernel support is H = 2 d (PHYSICS.md §1).
+    /// The particle spacing in m
+    ///
+    /// d = h; the kernel support is H = 2 d (PHYSICS.md §1).
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub particle_spacing: f32,
-    /// Simulated time at which `porosph run` stops, s.
+    /// The end time in s
+    ///
+    /// Simulated time at which `porosph run` stops.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub end_time: f64,
-    /// Upper bound of the time step, s; the CFL rule (PHYSICS.md §7) may pick less.
+    /// The largest time step in s
+    ///
+    /// An upper bound; the CFL rule (PHYSICS.md §7) may pick less. At most `end_time`.
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub max_dt: f32,
-    /// Gravity, m/s^2.
+    /// The acceleration of gravity in m/s^2
+    #[serde(default = "defaults::gravity")]
     pub gravity: [f32; 3],
+    /// The largest mean density error as a fraction of the rest density
+    ///
     /// IISPH stops when the mean predicted density error is at most this
-    /// fraction of the rest density (default 0.001 = 0.1 %).
+    /// (0.001 = 0.1 %).
+    #[serde(default = "defaults::max_density_error")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 0.1))]
     pub max_density_error: f32,
-    /// Simulated time between written frames, s.
+    /// The time between frames in s
+    #[serde(default = "defaults::frame_interval")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub frame_interval: f64,
-    /// CFL number lambda in dt <= lambda h / max|u| (default 0.4).
+    /// The CFL number
+    ///
+    /// lambda in dt <= lambda h / max|u|.
+    #[serde(default = "defaults::cfl_number")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
     pub cfl_number: f32,
-    /// Minimum IISPH iterations per step (default 2).
+    /// The least number of solver iterations
+    ///
+    /// IISPH iterations per step.
+    #[serde(default = "defaults::min_iterations")]
+    #[schemars(range(min = 1))]
     pub min_iterations: u32,
-    /// Maximum IISPH iterations per step (default 100).
+    /// The largest number of solver iterations
+    ///
+    /// IISPH iterations per step; at least `min_iterations`.
+    #[serde(default = "defaults::max_iterations")]
+    #[schemars(range(min = 1))]
     pub max_iterations: u32,
-    /// Relaxation factor omega of the Jacobi update (default 0.5).
+    /// The Jacobi relaxation factor omega
+    #[serde(default = "defaults::omega")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
     pub omega: f32,
-    /// Drift relaxation weight tau of P-Eq. 11, in m^2/(Pa s) = m^3 s/kg
-    /// (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a unit slip), the
-    /// default of every phase (default 3e-6, P Table 2). Not divided by the
-    /// viscosity (PHYSICS.md §4.1: [AC] does; here a Stokes-like
+    /// The drift relaxation weight tau in m^2/(Pa s) (= m^3 s/kg)
+    ///
+    /// tau of P-Eq. 11 (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a
+    /// unit slip), the default of every phase (P Table 2). Not divided by
+    /// the viscosity (PHYSICS.md §4.1: [AC] does; here a Stokes-like
     /// tau ~ d^2/(18 mu) is folded into the value).
+    #[serde(default = "defaults::drift_tau")]
+    #[schemars(range(min = 0))]
     pub drift_tau: f32,
-    /// Drift diffusion weight sigma of P-Eq. 11, in m^2/s, the default of
-    /// every phase (default 1e-3, P Table 2).
+    /// The drift diffusion weight sigma in m^2/s
+    ///
+    /// sigma of P-Eq. 11, the default of every phase (P Table 2).
+    #[serde(default = "defaults::drift_sigma")]
+    #[schemars(range(min = 0))]
     pub drift_sigma: f32,
-    /// The drift momentum term a^Dm of the mixture (PHYSICS.md §4.1, §8.15).
+    /// The drift momentum term
+    ///
+    /// a^Dm of the mixture (PHYSICS.md §4.1, §8.15).
+    #[serde(default = "defaults::drift_momentum")]
     pub drift_momentum: DriftMomentum,
-    /// The form of the volume-fraction transport (PHYSICS.md §4.1).
+    /// The volume-fraction transport
+    ///
+    /// Its form (PHYSICS.md §4.1).
+    #[serde(default = "defaults::phase_transport")]
     pub phase_transport: PhaseTransport,
+    /// The phase pressure
+    ///
     /// The phase pressures p_k of the drift velocities (P-Eq. 11).
+    #[serde(default = "defaults::phase_pressure")]
     pub phase_pressure: PhasePressure,
-    /// Relative residual |r| / |b| at which the conjugate gradients of the
-    /// elastic solve stop (default 1e-4, PHYSICS.md §3.3).
+    /// The relative residual of the elastic solve
+    ///
+    /// |r| / |b| at which the conjugate gradients stop (PHYSICS.md §3.3).
+    #[serde(default = "defaults::elastic_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
     pub elastic_tolerance: f32,
-    /// Largest number of conjugate-gradient iterations (default 1000: the
-    /// unpreconditioned CG needs about 4 (c dt / d) iterations, c the
-    /// speed of sound of the solid, so stiff solids need many).
+    /// The largest number of conjugate-gradient iterations
+    ///
+    /// The unpreconditioned CG of the elastic solve needs about
+    /// 4 (c dt / d) iterations, c the speed of sound of the solid, so stiff
+    /// solids need many.
+    #[serde(default = "defaults::elastic_max_iterations")]
+    #[schemars(range(min = 1))]
     pub elastic_max_iterations: u32,
-    /// Pore drift weight phi of P-Eq. 11's porous term, m^2/(Pa s) (the
-    /// units of tau, PHYSICS.md §7; default 3e-6, P Table 2).
+    /// The pore drift weight phi in m^2/(Pa s)
+    ///
+    /// phi of P-Eq. 11's porous term (the units of tau, PHYSICS.md §7; P Table 2).
+    #[serde(default = "defaults::pore_drift")]
+    #[schemars(range(min = 0))]
     pub pore_drift: f32,
-    /// Inner drift weight tau' of P-Eq. 12, dimensionless (it multiplies a
-    /// velocity, PHYSICS.md §8.11; default 1e-4, P Table 2).
+    /// The inner drift weight tau' (dimensionless)
+    ///
+    /// tau' of P-Eq. 12 (it multiplies a velocity, PHYSICS.md §8.11; P Table 2).
+    #[serde(default = "defaults::inner_drift_tau")]
+    #[schemars(range(min = 0))]
     pub inner_drift_tau: f32,
-    /// Inner diffusion weight sigma' of P-Eq. 12, m^2/s (default 2e-3,
-    /// P Table 2).
+    /// The inner diffusion weight sigma' in m^2/s
+    ///
+    /// sigma' of P-Eq. 12 (P Table 2).
+    #[serde(default = "defaults::inner_drift_sigma")]
+    #[schemars(range(min = 0))]
     pub inner_drift_sigma: f32,
+}
+
+/// The defaults of `[simulation]`.
+mod defaults {
+    use super::{DriftMomentum, PhasePressure, PhaseTransport};
+
+    pub fn gravity() -> [f32; 3] {
+        [0.0, -9.81, 0.0]
+    }
+    pub fn max_density_error() -> f32 {
+        0.001
+    }
+    pub fn frame_interval() -> f64 {
+        0.02
+    }
+    pub fn cfl_number() -> f32 {
+        0.4
+    }
+    pub fn min_iterations() -> u32 {
+        2
+    }
+    pub fn max_iterations() -> u32 {
+        100
+    }
+    pub fn omega() -> f32 {
+        0.5
+    }
+    /// P Table 2 (tau in m^2/(Pa s), PHYSICS.md §7).
+    pub fn drift_tau() -> f32 {
+        3e-6
+    }
+    /// P Table 2.
+    pub fn drift_sigma() -> f32 {
+        1e-3
+    }
+    pub fn drift_momentum() -> DriftMomentum {
+        DriftMomentum::Physical
+    }
+    pub fn phase_transport() -> PhaseTransport {
+        PhaseTransport::Conservative
+    }
+    pub fn phase_pressure() -> PhasePressure {
+        PhasePressure::Shared
+    }
+    pub fn elastic_tolerance() -> f32 {
+        1e-4
+    }
+    pub fn elastic_max_iterations() -> u32 {
+        1000
+    }
+    /// P Table 2.
+    pub fn pore_drift() -> f32 {
+        3e-6
+    }
+    /// P Table 2.
+    pub fn inner_drift_tau() -> f32 {
+        1e-4
+    }
+    /// P Table 2.
+    pub fn inner_drift_sigma() -> f32 {
+        2e-3
+    }
 }
 
 /// `phase_pressure`: the phase pressure p_k in P-Eq. 11
 /// (`porosph_kernels::drift` explains the difference).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
 pub enum PhasePressure {
     /// `"shared"` (default): p_k = p for every phase; the two pressure
     /// terms of P-Eq. 11 cancel and the drift is the buoyancy slip
@@ -106,7 +243,8 @@ pub enum PhasePressure {
 
 /// `phase_transport`: the form of the volume-fraction transport (P-Eq. 2);
 /// `porosph_kernels::phase_transport` explains both.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
 pub enum PhaseTransport {
     /// `"conservative"` (default): volume-weighted phase fluxes with a
     /// positivity limiter and no alpha div u_m term; conserves every
@@ -121,7 +259,8 @@ pub enum PhaseTransport {
 /// `drift_momentum`: how the drift momentum term
 /// a^Dm = -(1/rho) div sum_k alpha_k rho_k u_mk (x) u_mk enters the mixture
 /// momentum (PHYSICS.md §4.1; the sign discussion is §8.15).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
 pub enum DriftMomentum {
     /// `"physical"` (default): with the minus sign of the mixture momentum
     /// equation (Manninen et al. 1996).
@@ -160,6 +299,9 @@ pub enum Shape {
     /// `cylinder = { base = [..], axis = [..], radius = r, height = l }`:
     /// a cylinder from `base` along the unit vector `axis` for `height`.
     Cylinder { base: [f32; 3], axis: [f32; 3], radius: f32, height: f32 },
+    /// `mesh = { path, scale, translate }`: the inside of a closed triangle
+    /// mesh (OBJ or STL), read, scaled and moved when the scene is parsed.
+    Mesh(Arc<TriMesh>),
 }
 
 /// `[[fluid]]`: a block of fluid particles.
@@ -233,22 +375,34 @@ pub struct Porous {
 }
 
 /// `[solid.porous.phase.NAME]`: how a porous solid absorbs one phase.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct PorousPhase {
-    /// Permeability k_wk of P-Eq. 1, m^2 (PHYSICS.md §7: flux = -k/mu grad p).
+    /// The permeability k_w in m^2
+    ///
+    /// k_wk of P-Eq. 1 (PHYSICS.md §7: flux = -k/mu grad p).
+    #[schemars(range(min = 0))]
     pub permeability: f32,
-    /// Outer pore pressure p_0k, Pa: absorption stops where p^pore = p_0k.
+    /// The outer pore pressure p0k in Pa
+    ///
+    /// Absorption stops where p^pore = p_0k; at most porosity x rest_pore_pressure.
+    #[schemars(range(min = 0))]
     pub outer_pore_pressure: f32,
 }
 
 /// One interval of prescribed motion of a solid's fixed particles.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct Motion {
-    /// Start time, s.
+    /// The start time in s
+    #[schemars(range(min = 0))]
     pub from: f64,
-    /// End time, s (exclusive).
+    /// The end time in s
+    ///
+    /// Exclusive; after `from`, and intervals must not overlap.
+    #[schemars(range(min = 0))]
     pub until: f64,
-    /// Velocity, m/s.
+    /// The velocity of the fixed particles in m/s
     pub velocity: [f32; 3],
 }
 
@@ -259,22 +413,29 @@ impl Solid {
     }
 }
 
-/// A scene problem: which file, which key, and why.
+/// A scene problem: which file, which key, where, and why.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SceneError {
     /// File path, or `<built-in NAME>`.
     pub file: String,
     /// Dotted key path, e.g. `fluid[0].box.min`; empty for file-level errors.
     pub key: String,
+    /// 1-based line and column of the key or value at fault, where the
+    /// scene text has one (a TOML syntax error says it in `reason`).
+    pub position: Option<(usize, usize)>,
     pub reason: String,
 }
 
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some((line, column)) = self.position {
+            write!(f, ":{line}:{column}")?;
+        }
         if self.key.is_empty() {
-            write!(f, "{}: {}", self.file, self.reason)
+            write!(f, ": {}", self.reason)
         } else {
-            write!(f, "{}: key `{}`: {}", self.file, self.key, self.reason)
+            write!(f, ": key `{}`: {}", self.key, self.reason)
         }
     }
 }
