@@ -87,8 +87,8 @@ fn inspect_tells_frames_from_checkpoints_and_reports_damage() {
         "water",
         "oil",
         "m^3",
-        // scene + 11 fluid + 8 wall + 23 solid arrays (empty without solids).
-        "checksums:  all 43 datasets hold",
+        // scene + 11 fluid + 8 wall + 22 solid arrays (empty without solids).
+        "checksums:  all 42 datasets hold",
     ] {
         assert!(report.contains(want), "missing {want:?}");
     }

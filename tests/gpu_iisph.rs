@@ -147,19 +147,11 @@ fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
         vol_wall: &vol_b_full,
         vol_solid: &[],
         u_solid: no_solid,
-        inv_mass_solid: &[],
+        mobility_solid: &[],
     };
     iisph::fluid_setup(&mut ff, &mut fb, None, rows, dt, &mut src, &mut diag);
     let (mut src_b, mut diag_b) = (vec![0.0; na], vec![0.0; na]);
-    let rows = WallRows {
-        vol: &vol_b,
-        sigma: &sigma_b,
-        u_star,
-        vm_fluid: &vm,
-        vol_fluid: &vol,
-        u_own: None,
-        inv_mass_own: None,
-    };
+    let rows = WallRows { vol: &vol_b, sigma: &sigma_b, u_star, vm_fluid: &vm, vol_fluid: &vol };
     iisph::wall_setup(&mut bf, rows, dt, &mut src_b, &mut diag_b);
     let p0 = (0..n).map(|_| rng.range(0.0, 200.0)).collect();
     let mut p_wall0 = vec![0.0; nw];

@@ -119,14 +119,17 @@ outer_pore_pressure = 2.5e4
 /// devices). The absorbed volume and the largest drift speed differ by the
 /// rounding of the drift velocities (~3e-7 of the field's largest value,
 /// tests/gpu_drift.rs), which this violent flow (drift speeds ~3.6 m/s at
-/// the block) amplifies about tenfold every 50 steps at first. Measured on
-/// lavapipe (2026-11-22): red inner volume 8.7e-6 apart (relative) after
-/// 100 steps, 1.45e-3 after 300; largest drift speed 9.8e-6 apart after 100
-/// steps. Bounds: after 100 steps 1e-4 (inner volume) and 1e-3 (drift
-/// speed), about 10x the measured, for another device's rounding; after
-/// 300 steps the inner volume within 1 %, against the 40 % that doubling
-/// the absorption ratio makes (tests/porous.rs), so a GPU drift that
-/// changed the physics could not pass.
+/// the block) amplifies. Measured on lavapipe: red inner volume 1.6e-4
+/// apart (relative) after 100 steps, 2e-3 to 7e-3 after 300; largest drift
+/// speed 1.2e-3 apart after 100 steps (2026-12-02; 8.7e-6, 1.45e-3 and
+/// 9.8e-6 with the coupling before issue 14's: the two runs now separate
+/// faster in the first 100 steps, by the same amount whether the outer
+/// liquid inside moves in by a cut or a ramp). Bounds: after 100 steps
+/// 2e-3 (inner volume) and 1e-2 (drift speed), about 10x the measured,
+/// for another device's rounding; after 300 steps the inner volume within
+/// 2 %, against the 40 % that doubling the absorption ratio makes
+/// (tests/porous.rs), so a GPU drift that changed the physics could not
+/// pass.
 #[test]
 fn porous_run_with_gpu_drift_matches_cpu_for_300_steps() {
     let passes = GpuPasses { neighbors: false, pressure_solve: false, drift: true };
@@ -167,6 +170,6 @@ fn porous_run_with_gpu_drift_matches_cpu_for_300_steps() {
     assert!(cpu.3 == 0.0 && (g.3 > 0.0 || !g_timestamps), "the drift ran on the GPU");
     assert!(cpu.1[0].0 > 0.0 && cpu.1[0].1 > 0.0, "nothing absorbed or drifted");
     assert!(cpu.2 <= 1e-6 && g.2 <= 1e-6, "mass drift cpu {:e} gpu {:e}", cpu.2, g.2);
-    assert!(dv[0] <= 1e-4 && dd[0] <= 1e-3, "after 100 steps: inner volume {:e}, drift speed {:e}", dv[0], dd[0]);
-    assert!(dv[1] <= 1e-2, "after 300 steps: inner volume gpu {} cpu {}", g.1[1].0, cpu.1[1].0);
+    assert!(dv[0] <= 2e-3 && dd[0] <= 1e-2, "after 100 steps: inner volume {:e}, drift speed {:e}", dv[0], dd[0]);
+    assert!(dv[1] <= 2e-2, "after 300 steps: inner volume gpu {} cpu {}", g.1[1].0, cpu.1[1].0);
 }

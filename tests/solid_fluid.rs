@@ -172,13 +172,17 @@ fn dropped_block_keeps_the_fluid_out_and_stays_stable() {
 }
 
 /// One fluid layer between the floor and a fixed block (the block one
-/// spacing above the floor): the relaxed Jacobi loop has an oscillating
-/// mode there (wall and solid pressures rising in turn) that grows at the
-/// default omega = 0.5 and blew step 1 up (velocity 4e11 m/s). The loop
-/// now detects the growth (`iisph::Divergence`) and starts over with a
-/// smaller omega. Reference: the solver's own convergence criterion, the
-/// mean density error <= max_density_error (1e-3), at every step of 0.2 s,
-/// without a restart budget overrun or a step error.
+/// spacing above the floor): the relaxed Jacobi loop had an oscillating
+/// mode there (wall and solid pressures rising in turn) that grew at the
+/// default omega = 0.5 and blew step 1 up (velocity 4e11 m/s); the loop
+/// detects such growth (`iisph::Divergence`) and starts over with a
+/// smaller omega. Since the solid rows count the body's own share of their
+/// neighbourhood from the rest lattice (`volumes::own_occupancy`), which no
+/// longer over-counts the block's edges and corners, the mode does not
+/// appear here (measured: 2 sweeps and no restart in step 1). Reference:
+/// the solver's own convergence criterion, the mean density error <=
+/// max_density_error (1e-3), at every step of 0.2 s, without a restart
+/// budget overrun or a step error.
 #[test]
 fn one_fluid_layer_under_a_block_converges_at_the_default_omega() {
     // The block held (`fixed`), dt 2 ms.
@@ -205,7 +209,6 @@ fn one_fluid_layer_under_a_block_converges_at_the_default_omega() {
                 "step 1: {} sweeps, {} restart(s), density error {:.2e}",
                 st.iterations, st.solve_restarts, st.density_error
             );
-            assert!(st.solve_restarts >= 1, "the mode this test is about did not appear");
         }
         assert!(st.density_error <= 1e-3, "step {step}: density error {}", st.density_error);
     }

@@ -380,6 +380,16 @@ pub fn conjugate_gradients(
     let CgBuffers { r, p, ap, t, parts } = buf;
     let dot = |parts: &mut [f64], a: &[Vec3], b: &[Vec3]| sum_f64(n, parts, |i| f64::from(a[i].dot(b[i])));
     let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from(rhs[i].length_squared()) });
+    if b2 == 0.0 {
+        // Nothing drives the free particles: the solution is 0 for them
+        // (the pressure solve asks this of bodies no fluid touches).
+        v.par_iter_mut().enumerate().for_each(|(i, v)| {
+            if fixed[i] == 0 {
+                *v = Vec3::ZERO;
+            }
+        });
+        return CgStats { iterations: 0, residual: 0.0 };
+    }
     sys.apply(v, t, ap);
     r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
         *r = if fixed[i] != 0 { Vec3::ZERO } else { rhs[i] - ap[i] };

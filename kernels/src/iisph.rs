@@ -6,15 +6,13 @@
 //! `FF`, `FB`, `FS` are the fluid, wall and solid neighbours of fluid
 //! particles; `BF` the fluid neighbours of the active wall particles (those
 //! with at least one fluid neighbour), `SF` those of the solid particles.
-//! Solid particles are rows of the system like walls (PHYSICS.md §2.3), with
-//! their own predicted velocity u*_s, and they move within the solve: the
-//! caller gives each solid particle a pressure acceleration a^p_s built
-//! from F_s, the exact reaction of the pressure force on its fluid
-//! neighbours ([`solid_pressure_force`]), and the inverse mass that goes
-//! with it (the pipeline uses the body's rigid acceleration sum F_s / M;
-//! see `src/pipeline/step.rs`). Fixed solid particles have a^p_s = 0.
-//! Every solid argument is optional: without solids the fluid rows are
-//! exactly those of fluid and walls.
+//! Solid particles are rows of the system too ([`crate::solid_rows`]),
+//! with their own predicted velocity u*_s, and they move within the solve:
+//! the caller gives each solid particle its pressure acceleration a^p_s
+//! (the elastic body's response to its pressure force) and an estimate of
+//! its mobility (d a^p_s / d F_s) for the diagonals. Fixed solid particles
+//! have a^p_s = 0. Every solid argument is optional: without solids the
+//! fluid rows are exactly those of fluid and walls.
 //! After [`fluid_setup`] and [`wall_setup`], the stored pair gradient is
 //! g_ij = Vbar_ij grad W_ij with Vbar_ij = 2 V_i V_j / (V_i + V_j).
 
@@ -25,7 +23,7 @@ use rayon::iter::Either;
 use rayon::prelude::*;
 
 /// The blocks of optional pair lists, or `None` for each of `nb` blocks.
-fn opt_blocks(l: Option<&PairLists>, nb: usize) -> impl IndexedParallelIterator<Item = Option<&PairBlock>> {
+pub(crate) fn opt_blocks(l: Option<&PairLists>, nb: usize) -> impl IndexedParallelIterator<Item = Option<&PairBlock>> {
     match l {
         Some(l) => Either::Left(l.used().par_iter().map(Some)),
         None => Either::Right((0..nb).into_par_iter().map(|_| None)),
@@ -33,7 +31,10 @@ fn opt_blocks(l: Option<&PairLists>, nb: usize) -> impl IndexedParallelIterator<
 }
 
 /// The blocks of optional pair lists, mutably.
-fn opt_blocks_mut(l: Option<&mut PairLists>, nb: usize) -> impl IndexedParallelIterator<Item = Option<&mut PairBlock>> {
+pub(crate) fn opt_blocks_mut(
+    l: Option<&mut PairLists>,
+    nb: usize,
+) -> impl IndexedParallelIterator<Item = Option<&mut PairBlock>> {
     match l {
         Some(l) => Either::Left(l.used_mut().par_iter_mut().map(Some)),
         None => Either::Right((0..nb).into_par_iter().map(|_| None)),
@@ -117,31 +118,8 @@ pub fn kernel_sums(pairs: &PairLists, val: &[f32], out: &mut [f32]) {
     });
 }
 
-/// out_i = sum_j val_j W_ij over the pairs of every query whose target is
-/// in the query's own group (`group`, indexed like both sides: queries
-/// and targets are the same set). The boundary part of a solid row's sigma
-/// (PHYSICS.md §2.3) counts only its own body, as a wall row counts only
-/// walls: a row then resists compression by fluid, never by another body
-/// pressed against it, which the fluid cannot relieve (its pressure grew
-/// as 1/diag on rows with one far fluid neighbour: 5e9 Pa where two porous
-/// layers touched, README known limits).
-pub fn kernel_sums_within(pairs: &PairLists, val: &[f32], group: &[u32], out: &mut [f32]) {
-    out.par_chunks_mut(BLOCK).zip(pairs.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
-        for (q, o) in o.iter_mut().enumerate() {
-            let g = group[b * BLOCK + q];
-            let r = blk.range(q);
-            let all_own = blk.j[r.clone()].iter().all(|&j| group[j as usize] == g);
-            *o = if all_own {
-                weighted_sum(&blk.j, &blk.w, r, val)
-            } else {
-                r.filter(|&k| group[blk.j[k] as usize] == g).map(|k| val[blk.j[k] as usize] * blk.w[k]).sum()
-            };
-        }
-    });
-}
-
 #[inline(always)]
-fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) -> f32 {
+pub(crate) fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) -> f32 {
     let (j, w) = (&j[..r.end], &w[..r.end]);
     let mut acc = F::ZERO;
     let mut k = r.start;
@@ -156,7 +134,7 @@ fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) ->
 /// pairs, lane-wise, 0 where V_i V_j = 0 (PHYSICS.md §0, with the factor 2
 /// the paper drops, §8.2).
 #[inline(always)]
-fn harmonic_volumes(vi: F, vj: F) -> F {
+pub(crate) fn harmonic_volumes(vi: F, vj: F) -> F {
     let prod = vi * vj;
     let hv = F::splat(2.0) * prod / (vi + vj);
     wide::Select::select(prod.simd_gt(F::ZERO), hv, F::ZERO)
@@ -165,7 +143,7 @@ fn harmonic_volumes(vi: F, vj: F) -> F {
 /// Scales the pair gradients of query `q` of `blk` in place by the
 /// harmonic pair volume: g_ij <- Vbar_ij grad W_ij (PHYSICS.md §2.4).
 #[inline(always)]
-fn scale_pairs(blk: &mut PairBlock, q: usize, vi: f32, vol_t: &[f32]) {
+pub(crate) fn scale_pairs(blk: &mut PairBlock, q: usize, vi: f32, vol_t: &[f32]) {
     let r = blk.range(q);
     let vi = F::splat(vi);
     let mut k = r.start;
@@ -220,9 +198,10 @@ pub struct FluidRows<'a> {
     pub vol_solid: &'a [f32],
     /// Predicted velocity u*_s of each solid particle, m/s (empty without solids).
     pub u_solid: Vel<'a>,
-    /// The inverse mass with which a solid particle's acceleration responds
-    /// to its pressure force, 1/kg (0 for fixed ones).
-    pub inv_mass_solid: &'a [f32],
+    /// The mobility c_s with which a solid particle's acceleration responds
+    /// to its pressure force (an estimate of the elastic body's compliance
+    /// on the diagonal), 1/kg (0 for fixed ones).
+    pub mobility_solid: &'a [f32],
 }
 
 /// Particles below this outer fraction have no outer volume: V0 = 0 in the
@@ -278,8 +257,8 @@ pub fn row_weight(alpha_f: f32) -> f32 {
 /// and the diagonal
 /// a_ff = -dt^2 [ (V_f/m_f) |sum_j g_fj|^2 + sum_{j fluid} (V_j/m_j) |g_fj|^2
 ///               + sum_{s solid} (V_f/m_s) |g_fs|^2 ]
-/// (PHYSICS.md §2.2; the solid term is d(a^p_s)/dp_f of
-/// [`solid_pressure_force`]).
+/// (PHYSICS.md §2.2; the solid term is d(a^p_s)/dp_f through the solid's
+/// pressure force, `solid_rows::solid_force`).
 ///
 /// The source is [AC]'s form, not P-Eq. 29's alpha_f (1 + dt div*) - V0/V
 /// (which PHYSICS.md §8.4 recommends): the two agree for alpha_f = 1 (every
@@ -366,7 +345,7 @@ pub fn fluid_setup(
                         sx += x;
                         sy += y;
                         sz += z;
-                        s2_solid += gather(rows.inv_mass_solid, &bs.j, k) * (x * x + y * y + z * z);
+                        s2_solid += gather(rows.mobility_solid, &bs.j, k) * (x * x + y * y + z * z);
                         k += LANES;
                     }
                 }
@@ -393,20 +372,14 @@ pub struct WallRows<'a> {
     pub vm_fluid: &'a [f32],
     /// Fluid V, m^3.
     pub vol_fluid: &'a [f32],
-    /// The rows' own predicted velocity u*, m/s (compact): `Some` for solid
-    /// rows, `None` for static walls.
-    pub u_own: Option<Vel<'a>>,
-    /// The rows' own 1/m, 1/kg: `Some` for solid rows (0 where fixed).
-    pub inv_mass_own: Option<&'a [f32]>,
 }
 
-/// Pass 4c, wall and solid rows: scales the row-fluid pair gradients in
-/// place by the harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
-/// (P-Eq. 26) with div*_b = -sum_f Vbar (u*_b - u*_f).grad W_bf (u*_b = 0
-/// for walls), and
-/// a_bb = -dt^2 [ sum_f (V_f/m_f) |g_bf|^2 + (1/m_b) (sum_f V_f g_bf).(sum_f g_bf) ]
-/// (the second term, d(a^p_b)/dp_b, only for solid rows: a static wall has
-/// no acceleration).
+/// Pass 4c, wall rows: scales the wall-fluid pair gradients in place by
+/// the harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
+/// (P-Eq. 26) with div*_b = -sum_f Vbar (u*_b - u*_f).grad W_bf (u*_b = 0),
+/// and a_bb = -dt^2 sum_f (V_f/m_f) |g_bf|^2 (a static wall has no
+/// acceleration; the solids near a wall add theirs,
+/// `solid_rows::wall_solid_setup`).
 pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32], diag: &mut [f32]) {
     let dt2 = dt * dt;
     source
@@ -428,30 +401,8 @@ pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32
                     s2 += gather(rows.vm_fluid, &blk.j, k) * (x * x + y * y + z * z);
                     k += LANES;
                 }
-                let mut div = sum(div);
-                let mut own = 0.0;
-                if let Some(u) = rows.u_own {
-                    let (mut gx, mut gy, mut gz) = (F::ZERO, F::ZERO, F::ZERO);
-                    let (mut vx, mut vy, mut vz) = (F::ZERO, F::ZERO, F::ZERO);
-                    let mut k = r.start;
-                    while k < r.end {
-                        let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
-                        let v = gather(rows.vol_fluid, &blk.j, k);
-                        gx += x;
-                        gy += y;
-                        gz += z;
-                        vx += v * x;
-                        vy += v * y;
-                        vz += v * z;
-                        k += LANES;
-                    }
-                    let (gx, gy, gz) = (sum(gx), sum(gy), sum(gz));
-                    div -= u.x[i] * gx + u.y[i] * gy + u.z[i] * gz;
-                    let inv_m = rows.inv_mass_own.map_or(0.0, |m| m[i]);
-                    own = inv_m * (sum(vx) * gx + sum(vy) * gy + sum(vz) * gz);
-                }
-                *src = 1.0 + dt * div - rows.sigma[i];
-                *dg = -dt2 * (sum(s2) + own);
+                *src = 1.0 + dt * sum(div) - rows.sigma[i];
+                *dg = -dt2 * sum(s2);
             }
         });
 }
@@ -642,67 +593,45 @@ pub fn fluid_jacobi(
 }
 
 /// Relaxed Jacobi update of the active wall rows (compact arrays):
-/// (Ap)_b = dt^2 sum_f Vbar (a^p_b - a^p_f).grad W_bf, with a^p_b = 0 for
-/// walls and `own` for solid rows, then as [`fluid_jacobi`].
-pub fn wall_jacobi(bf: &PairLists, ap: Vel, own: Option<Vel>, rows: Rows, jac: Jacobi, p: &mut [f32]) {
+/// (Ap)_b = -dt^2 sum_j Vbar (a^p_j).grad W_bj over the fluid neighbours
+/// and, with `solids` (the walls' solid pairs and the solids' a^p_s), the
+/// solid ones (a wall has a^p_b = 0), then as [`fluid_jacobi`].
+pub fn wall_jacobi(bf: &PairLists, ap: Vel, solids: Option<(&PairLists, Vel)>, rows: Rows, jac: Jacobi, p: &mut [f32]) {
     let dt2 = jac.dt * jac.dt;
-    p.par_chunks_mut(BLOCK).zip(bf.used().par_iter()).enumerate().for_each(|(b, (pp, blk))| {
-        for (q, p) in pp.iter_mut().enumerate() {
-            let i = b * BLOCK + q;
-            if rows.diag[i].abs() < f32::MIN_POSITIVE {
-                *p = 0.0;
-                continue;
-            }
-            let r = blk.range(q);
-            let mut acc = F::ZERO;
-            let (ox, oy, oz) =
-                own.map_or((F::ZERO, F::ZERO, F::ZERO), |a| (F::splat(a.x[i]), F::splat(a.y[i]), F::splat(a.z[i])));
-            let mut k = r.start;
-            while k < r.end {
-                acc += (gather(ap.x, &blk.j, k) - ox) * load(&blk.gx, k)
-                    + (gather(ap.y, &blk.j, k) - oy) * load(&blk.gy, k)
-                    + (gather(ap.z, &blk.j, k) - oz) * load(&blk.gz, k);
-                k += LANES;
-            }
-            let res = rows.source[i] + dt2 * sum(acc);
-            *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
-        }
-    });
-}
-
-/// The force of the fluid's pressure on each solid particle, the exact
-/// reaction of the solid terms of [`pressure_acceleration`]: the fluid
-/// particle f receives -V_f Vbar_fs (p_f + p_s) grad W_fs from s, so s
-/// receives F_s = -sum_f V_f (p_s + p_f) Vbar_sf grad W_sf (N). `sf` holds
-/// g_sf = Vbar_sf grad W_sf (after [`wall_setup`] scaled it). This is "the
-/// boundary force the solid receives from the outer fluid" (P Alg. 2,
-/// PHYSICS.md §2.3); linear momentum of fluid + solid is conserved pairwise.
-pub fn solid_pressure_force(sf: &PairLists, p_s: &[f32], p_f: &[f32], vol_f: &[f32], out: VelMut) {
-    out.x
-        .par_chunks_mut(BLOCK)
-        .zip(out.y.par_chunks_mut(BLOCK))
-        .zip(out.z.par_chunks_mut(BLOCK))
-        .zip(sf.used().par_iter())
-        .enumerate()
-        .for_each(|(b, (((ox, oy), oz), blk))| {
-            for q in 0..ox.len() {
+    let nb = bf.used().len();
+    let a_s = solids.map(|s| s.1);
+    p.par_chunks_mut(BLOCK).zip(bf.used().par_iter().zip(opt_blocks(solids.map(|s| s.0), nb))).enumerate().for_each(
+        |(b, (pp, (blk, bs)))| {
+            for (q, p) in pp.iter_mut().enumerate() {
                 let i = b * BLOCK + q;
-                let ps = F::splat(p_s[i]);
-                let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
+                if rows.diag[i].abs() < f32::MIN_POSITIVE {
+                    *p = 0.0;
+                    continue;
+                }
                 let r = blk.range(q);
+                let mut acc = F::ZERO;
                 let mut k = r.start;
                 while k < r.end {
-                    let c = gather(vol_f, &blk.j, k) * (ps + gather(p_f, &blk.j, k));
-                    sx += c * load(&blk.gx, k);
-                    sy += c * load(&blk.gy, k);
-                    sz += c * load(&blk.gz, k);
+                    acc += gather(ap.x, &blk.j, k) * load(&blk.gx, k)
+                        + gather(ap.y, &blk.j, k) * load(&blk.gy, k)
+                        + gather(ap.z, &blk.j, k) * load(&blk.gz, k);
                     k += LANES;
                 }
-                ox[q] = -sum(sx);
-                oy[q] = -sum(sy);
-                oz[q] = -sum(sz);
+                if let (Some(bs), Some(a)) = (bs, a_s) {
+                    let r = bs.range(q);
+                    let mut k = r.start;
+                    while k < r.end {
+                        acc += gather(a.x, &bs.j, k) * load(&bs.gx, k)
+                            + gather(a.y, &bs.j, k) * load(&bs.gy, k)
+                            + gather(a.z, &bs.j, k) * load(&bs.gz, k);
+                        k += LANES;
+                    }
+                }
+                let res = rows.source[i] + dt2 * sum(acc);
+                *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
             }
-        });
+        },
+    );
 }
 
 #[cfg(test)]

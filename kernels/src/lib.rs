@@ -16,4 +16,5 @@ pub mod neighbors;
 pub mod phase_transport;
 pub mod phases;
 pub mod porous;
+pub mod solid_rows;
 pub mod viscosity;

@@ -4,7 +4,8 @@
 //! order: bitwise the same for any thread count).
 
 use super::passes::{
-    DriftOutput, DriftProblem, DriftReport, Passes, PressureSystem, SolveReport, StepShape, Unknowns, WallInput,
+    Compliance, DriftOutput, DriftProblem, DriftReport, Passes, PressureSystem, SolidUnknowns, SolveReport, StepShape,
+    Unknowns, WallInput,
 };
 use super::BackendKind;
 use bumpalo::Bump;
@@ -12,8 +13,9 @@ use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, Jacobi, SolidPairs, Vel, VelMut};
-use porosph_kernels::neighbors::{compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation, Points};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use porosph_kernels::solid_rows;
 
 /// Every pass on the CPU.
 #[derive(Clone, Copy, Debug, Default)]
@@ -119,54 +121,67 @@ impl Passes for Cpu {
 }
 
 /// Pass 5 on the CPU: relaxed Jacobi (P-Eqs. 27-28) until the mean
-/// predicted density error is at most the settings' bound. Within the solve
-/// every solid body moves rigidly under the sum of the pressure forces on
-/// it ([`rigid_pressure_acceleration`]). A solve whose error grows starts
-/// over from the warm start with a smaller omega (`iisph::Divergence`).
+/// predicted density error of the fluid rows, and of the solid rows, is at
+/// most the settings' bound. Each sweep: the fluid's a^p, the solids'
+/// pressure forces and the bodies' response to them (a few iterations of
+/// their compliance solve, warm-started from the last sweep), then the
+/// updates of every row. A solve whose error grows starts over from the
+/// warm start with a smaller omega (`iisph::Divergence`).
 fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
-    let Unknowns { p, p_wall, p_active, p_solid, ap } = x;
+    let Unknowns { p, p_wall, p_active, ap, solids } = x;
     let VelMut { x: apx, y: apy, z: apz } = ap;
+    let (p_s, mut accel, mut response): (&mut [f32], VelMut, Option<&mut dyn Compliance>) = match solids {
+        Some(SolidUnknowns { p, accel, response }) => (p, accel, Some(response)),
+        None => (&mut [], VelMut { x: &mut [], y: &mut [], z: &mut [] }, None),
+    };
     let s = &sys.settings;
     let n = p.len();
-    let ns = p_solid.len();
+    let ns = p_s.len();
     let err = zeros(arena, n);
-    let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
-    let (asx, asy, asz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
-    let nbodies = sys.solids.as_ref().map_or(0, |s| s.body_inv_mass.len());
-    let body_force = arena.alloc_slice_fill_copy(3 * nbodies, 0.0f64);
+    let err_s = zeros(arena, ns);
+    let parts = arena.alloc_slice_fill_copy(nblocks(n.max(ns)), 0.0f64);
+    let (fx, fy, fz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    let solid_rows_active = match &sys.solids {
+        Some(sol) => sum_f64(ns, parts, |i| (sol.rows.diag[i] != 0.0) as u32 as f64).max(1.0),
+        None => 1.0,
+    };
     let fs_pairs = sys.solids.as_ref().map(|s| s.fs);
     // The warm start, kept for a restart with a smaller omega.
-    let start = [arena.alloc_slice_copy(p), arena.alloc_slice_copy(p_active), arena.alloc_slice_copy(p_solid)];
+    let start = [arena.alloc_slice_copy(p), arena.alloc_slice_copy(p_active), arena.alloc_slice_copy(p_s)];
     let mut omega = s.omega;
     let mut guard = iisph::Divergence::default();
     let mut report = SolveReport::default();
     let mut it = 0;
     loop {
         let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
-        let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_solid });
+        let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
         iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
-        if let Some(solid) = &sys.solids {
-            let out = VelMut { x: &mut *asx, y: &mut *asy, z: &mut *asz };
-            let bodies = BodyMotion { body: solid.body, inv_mass: solid.body_inv_mass, sums: &mut *body_force };
-            rigid_pressure_acceleration(solid.sf, p_solid, p, sys.vol, bodies, out);
+        if let (Some(sol), Some(r)) = (&sys.solids, response.as_mut()) {
+            let f = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
+            solid_rows::solid_force(sol.solid, p_s, p, p_wall, sys.vol, sol.vol, f);
+            r.respond(Vel { x: fx, y: fy, z: fz }, accel.reborrow(), false);
         }
         let ap = Vel { x: apx, y: apy, z: apz };
-        let a_s = Vel { x: asx, y: asy, z: asz };
         let jac = Jacobi { dt: s.dt, omega };
+        let a_s = Vel { x: &*accel.x, y: &*accel.y, z: &*accel.z };
         let fs = fs_pairs.map(|pairs| (pairs, a_s));
         iisph::fluid_jacobi(sys.ff, sys.fb, fs, ap, sys.rows, jac, p, err);
-        iisph::wall_jacobi(sys.bf, ap, None, sys.wall_rows, jac, p_active);
-        if let Some(solid) = &sys.solids {
-            iisph::wall_jacobi(solid.sf, ap, Some(a_s), solid.rows, jac, p_solid);
+        let bs = sys.solids.as_ref().map(|s| (s.bs, a_s));
+        iisph::wall_jacobi(sys.bf, ap, bs, sys.wall_rows, jac, p_active);
+        if let Some(sol) = &sys.solids {
+            solid_rows::solid_jacobi(sol.solid, a_s, ap, sol.rows, jac, p_s, err_s);
         }
         it += 1;
         let e = (sum_f64(n, parts, |i| err[i] as f64) / f64::from(s.rows_active)) as f32;
+        let e_s = (sum_f64(ns, parts, |i| err_s[i] as f64) / solid_rows_active) as f32;
         report.density_error = e;
-        let restart = guard.diverging(e) && e > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
+        report.solid_error = e_s;
+        let worst = e.max(e_s);
+        let restart = guard.diverging(worst) && worst > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
         if restart {
             p.copy_from_slice(start[0]);
             p_active.copy_from_slice(start[1]);
-            p_solid.copy_from_slice(start[2]);
+            p_s.copy_from_slice(start[2]);
             omega *= iisph::RELAXATION_BACKOFF;
             guard = iisph::Divergence::default();
             report.restarts += 1;
@@ -174,59 +189,20 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         for (k, &b) in sys.walls.active.iter().enumerate() {
             p_wall[b as usize] = p_active[k];
         }
-        if (!restart && it >= s.min_iterations && e <= s.max_density_error) || it >= s.max_iterations {
+        if (!restart && it >= s.min_iterations && worst <= s.max_density_error) || it >= s.max_iterations {
             break;
         }
     }
     report.iterations = it;
     let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
-    let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_solid });
+    let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
     iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
+    if let (Some(sol), Some(r)) = (&sys.solids, response.as_mut()) {
+        let f = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
+        solid_rows::solid_force(sol.solid, p_s, p, p_wall, sys.vol, sol.vol, f);
+        r.respond(Vel { x: fx, y: fy, z: fz }, accel.reborrow(), true);
+    }
     report
-}
-
-/// The bodies of the solid particles (sorted order) within the solve.
-struct BodyMotion<'a> {
-    /// Body of each solid particle.
-    body: &'a [u32],
-    /// 1/M of each body (0 if it has fixed particles).
-    inv_mass: &'a [f32],
-    /// Scratch: 3 per body.
-    sums: &'a mut [f64],
-}
-
-/// The rigid pressure acceleration of the bodies within the solve:
-/// a^p_s = (sum over the body of F_s) / M for every particle s of a body,
-/// F_s from [`iisph::solid_pressure_force`] (summed in f64 in particle
-/// order: deterministic). Strong coupling of the rigid motion, which
-/// carries the fluid's added mass: a body lighter than the fluid is
-/// unstable with per-particle masses, whose surface layer alone would face
-/// the fluid.
-fn rigid_pressure_acceleration(
-    sf: &PairLists,
-    p_s: &[f32],
-    p_f: &[f32],
-    vol_f: &[f32],
-    bodies: BodyMotion,
-    out: VelMut,
-) {
-    let VelMut { x, y, z } = out;
-    iisph::solid_pressure_force(sf, p_s, p_f, vol_f, VelMut { x: &mut *x, y: &mut *y, z: &mut *z });
-    let BodyMotion { body, inv_mass, sums } = bodies;
-    sums.iter_mut().for_each(|s| *s = 0.0);
-    for (k, &b) in body.iter().enumerate() {
-        let b = 3 * b as usize;
-        sums[b] += f64::from(x[k]);
-        sums[b + 1] += f64::from(y[k]);
-        sums[b + 2] += f64::from(z[k]);
-    }
-    for (k, &b) in body.iter().enumerate() {
-        let m = inv_mass[b as usize];
-        let b = 3 * b as usize;
-        x[k] = (sums[b] * f64::from(m)) as f32;
-        y[k] = (sums[b + 1] * f64::from(m)) as f32;
-        z[k] = (sums[b + 2] * f64::from(m)) as f32;
-    }
 }
 
 /// Steps 2-3 of P-Eq. 11 (or 12) for all phases: the mass- and

@@ -15,6 +15,7 @@ use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Rows, Vel, VelMut};
 use porosph_kernels::neighbors::{PairLists, Points};
 use porosph_kernels::phases::PhaseConstants;
+use porosph_kernels::solid_rows::SolidNeighbours;
 
 /// The passes a backend runs for the step.
 pub trait Passes: Send {
@@ -126,22 +127,36 @@ pub struct PressureSystem<'a> {
     pub settings: SolveSettings,
 }
 
-/// The solid rows of pass 5, in the sorted solid order of the pair lists.
+/// The solid rows of pass 5 (`porosph_kernels::solid_rows`), in the
+/// sorted solid order of the pair lists.
 pub struct SolidSystem<'a> {
-    /// Fluid-solid and solid-fluid pairs.
+    /// Fluid-solid pairs (fluid rows), the solid rows' solid-fluid,
+    /// solid-wall and solid-solid pairs, and the active walls' wall-solid
+    /// pairs (the order of `WallInput::active`).
     pub fs: &'a PairLists,
-    pub sf: &'a PairLists,
+    pub solid: SolidNeighbours<'a>,
+    pub bs: &'a PairLists,
+    /// Current volume V_s of each solid particle, m^3.
+    pub vol: &'a [f32],
     /// Solid rows (S, a_ii).
     pub rows: Rows<'a>,
-    /// Elastic body of each solid particle.
-    pub body: &'a [u32],
-    /// 1/M of each body, 1/kg (0 for a body with fixed particles: it does
-    /// not move within the solve).
-    pub body_inv_mass: &'a [f32],
+}
+
+/// How the solid particles move within the pressure solve: the elastic
+/// bodies' response a^p_s = C F_s to the pressure forces (C the compliance
+/// of their implicit step), so that the solve sees each body give way as it
+/// will (strong coupling: a body lighter than the fluid is stable, whose
+/// surface alone would face the fluid's added mass).
+pub trait Compliance {
+    /// The accelerations of the solid particles (sorted order) under the
+    /// forces `force` (N), into `accel` (m/s^2), which holds the last
+    /// answer on entry (the warm start). `exact`: to the model's tolerance
+    /// (the final answer of the solve); else a few iterations.
+    fn respond(&mut self, force: Vel, accel: VelMut, exact: bool);
 }
 
 /// The unknowns of pass 5: the pressures (read as the warm start, written
-/// as the solution) and the final pressure accelerations of the fluid.
+/// as the solution) and the final pressure accelerations.
 pub struct Unknowns<'a> {
     /// Fluid pressures, Pa.
     pub p: &'a mut [f32],
@@ -149,10 +164,20 @@ pub struct Unknowns<'a> {
     pub p_wall: &'a mut [f32],
     /// Pressures of the active walls (the order of `WallInput::active`), Pa.
     pub p_active: &'a mut [f32],
-    /// Solid pressures (sorted order; empty without solids), Pa.
-    pub p_solid: &'a mut [f32],
     /// Fluid a^p, m/s^2.
     pub ap: VelMut<'a>,
+    /// The solids' unknowns, with the solid rows.
+    pub solids: Option<SolidUnknowns<'a>>,
+}
+
+/// The solids' part of [`Unknowns`].
+pub struct SolidUnknowns<'a> {
+    /// Solid pressures (sorted order), Pa.
+    pub p: &'a mut [f32],
+    /// a^p_s = C F_s (sorted order), m/s^2.
+    pub accel: VelMut<'a>,
+    /// How the bodies respond to the pressure forces.
+    pub response: &'a mut dyn Compliance,
 }
 
 /// How pass 5 went.
@@ -163,6 +188,8 @@ pub struct SolveReport {
     /// Restarts with a smaller omega after the error grew
     /// (`iisph::Divergence`; CPU loop only).
     pub restarts: u32,
+    /// Mean predicted compression of the solid rows after the solve.
+    pub solid_error: f32,
     /// Device time of the loop from timestamp queries, ms (None where the
     /// loop ran on the CPU or the adapter has none).
     pub gpu_ms: Option<f64>,

@@ -100,6 +100,8 @@ pub struct StepStats {
     pub solve_restarts: u32,
     /// Mean predicted density error after the solve (fraction of rest density).
     pub density_error: f32,
+    /// Mean predicted compression of the solid rows after the solve.
+    pub solid_density_error: f32,
     /// Largest fluid speed after the step, m/s.
     pub max_speed: f32,
     /// Largest drift speed max_k |u_mk| of the step, m/s (0 for one phase).
@@ -162,6 +164,13 @@ struct Workspace {
     ss: PairLists,
     /// Solid-wall pairs (solid queries in sorted order).
     sb: PairLists,
+    /// Active-wall-solid pairs (solid targets in sorted order).
+    bs: PairLists,
+    /// omega_s, each solid particle's own body's share of its pressure
+    /// row's neighbourhood, and V0_s, its rest volume in the solve (store
+    /// order; `volumes::rest_rows`).
+    solid_own: Vec<f32>,
+    solid_v0: Vec<f32>,
     /// 0..number of solids (the identity row map of the solid rows).
     solid_rows: Vec<u32>,
     /// Who runs the passes a backend may run (`Simulation::use_gpu`;
@@ -203,6 +212,8 @@ impl Simulation {
             + w.sf.bytes()
             + w.ss.bytes()
             + w.sb.bytes()
+            + w.bs.bytes()
+            + 4 * (w.solid_own.capacity() + w.solid_v0.capacity())
             + w.ff.bytes()
             + w.ffb.bytes()
             + w.fb.bytes()

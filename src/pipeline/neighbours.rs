@@ -1,9 +1,9 @@
 //! Pass 0 (P Alg. 1's neighbour search; PHYSICS.md §0, §6): the Morton sort
 //! of the fluid (keys and sort by the backend), the fluid cell grid, the
 //! pairs FF, fluid-wall and active-wall-fluid, the active walls (those with
-//! a fluid neighbour: the wall rows of the pressure solve, PHYSICS.md
-//! §2.4), and with solids the solids' Morton order and the pairs FS, SF, SS
-//! and solid-wall. Everything it builds lives in the [`Workspace`].
+//! a fluid or solid neighbour: the wall rows of the pressure solve,
+//! PHYSICS.md §2.4), and with solids the solids' Morton order and the pairs
+//! FS, SF, SS, solid-wall and active-wall-solid. Everything it builds lives in the [`Workspace`].
 
 use super::timing::{pass, PassTimes};
 use super::{Params, Workspace};
@@ -39,13 +39,18 @@ pub(super) fn search(
         let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
         build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
-        active_walls(walls.len(), w);
+        if !solids.is_empty() {
+            solid_pairs(p, fluid, solids, walls, w);
+        }
+        active_walls(walls.len(), !solids.is_empty(), w);
         let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
         let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
         let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
-        build_pairs(&mut w.bf, Points { x: ax, y: ay, z: az }, fp, &w.fluid_grid, None, &p.kernel);
+        let ap = Points { x: ax, y: ay, z: az };
+        build_pairs(&mut w.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
         if !solids.is_empty() {
-            solid_pairs(p, fluid, solids, walls, w);
+            let [sx, sy, sz] = &w.solid_sorted;
+            build_pairs(&mut w.bs, ap, Points { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
@@ -55,13 +60,14 @@ pub(super) fn search(
 }
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs
-/// with a positive kernel weight.
-fn active_walls(nw: usize, w: &mut Workspace) {
+/// (and with solids of the solid-wall pairs) with a positive kernel weight.
+fn active_walls(nw: usize, solids: bool, w: &mut Workspace) {
     w.wall_flag.resize(nw, 0);
     for &b in &w.active {
         w.wall_flag[b as usize] = 0;
     }
-    for blk in w.fb.used() {
+    let sb = if solids { w.sb.used() } else { &[] };
+    for blk in w.fb.used().iter().chain(sb) {
         for (&b, &wt) in blk.j.iter().zip(&blk.w) {
             if wt > 0.0 {
                 w.wall_flag[b as usize] = 1;

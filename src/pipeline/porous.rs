@@ -20,13 +20,13 @@
 
 use super::timing::{pass, PassTimes};
 use super::{Params, Workspace};
-use crate::store::{FluidStore, SolidStore};
+use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self, Vel, VelMut};
 use porosph_kernels::porous::{
-    absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, FluidPhase, FluidPhaseOut,
-    SolidPhase,
+    absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
+    FluidPhaseOut, SolidPhase,
 };
 use rayon::prelude::*;
 
@@ -39,16 +39,21 @@ fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
 pub(super) struct Partition<'a> {
     pub n_f: &'a [f32],
     pub mask: &'a [f32],
+    /// h^3 sum_s W_fs over the solid particles that absorb phase k (phase
+    /// k at `[k n, (k + 1) n)`), for [`settle`].
+    pub fill: &'a [f32],
 }
 
 /// Pass 2's part of the porous coupling: N_f = sum_s W_fs over the porous
 /// solid particles within reach of each fluid particle (P-Eq. 15's
 /// weights), and P Alg. 4's fallback: where N_f = 0 every beta_k moves back
-/// to alpha_k.
+/// to alpha_k; and the fill of each phase's absorbing solids around each
+/// fluid particle, for [`settle`] at the end of the step.
 pub(super) fn partition<'a>(
     p: &Params,
     fluid: &mut FluidStore,
     solids: &SolidStore,
+    walls: &WallStore,
     w: &Workspace,
     arena: &'a Bump,
     tm: &mut PassTimes,
@@ -62,8 +67,53 @@ pub(super) fn partition<'a>(
         for (a, b) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()) {
             release_outside(n_f, a, b);
         }
-        Partition { n_f, mask }
+        // The fill of each phase's absorbing solids, for `settle`: each
+        // solid particle counts with its current volume h^3 (1 + tr eps)
+        // (the strain of the last step), so that a squeezed solid does not
+        // read as fuller than a relaxed one (with h^3 alone, a sponge
+        // squeezed to tr(eps) = -0.12 read as full up to its faces, and no
+        // liquid could leave it).
+        let (n, cell) = (fluid.len(), p.cell_volume());
+        let fill = zeros(arena, fluid.alpha.len() * n);
+        for (k, fill) in fill.chunks_mut(n.max(1)).enumerate() {
+            let absorbs = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
+                let i = i as usize;
+                let r = p.porous[solids.body[i] as usize].as_ref();
+                let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
+                r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume
+            }));
+            iisph::kernel_sums(&w.fs, absorbs, fill);
+        }
+        // Walls fill the neighbourhood as well as the solid does: a partly
+        // absorbed particle inside a soaking block next to the tank's floor
+        // and front wall (solid fill 0.8, walls the rest) kept its row,
+        // compressed by both, and its pressure rose tenfold per step to
+        // 2.7e9 Pa.
+        let walls_fill = zeros(arena, n);
+        iisph::kernel_sums(&w.fb, &walls.rest_volume, walls_fill);
+        for fill in fill.chunks_mut(n.max(1)) {
+            for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
+                if *f > 0.0 {
+                    *f += b;
+                }
+            }
+        }
+        Partition { n_f, mask, fill }
     })
+}
+
+/// The end of the step (P Alg. 4, after the fractions' correction): where a
+/// solid that absorbs phase k fills a fluid particle's neighbourhood,
+/// alpha_k moves into beta_k (`porosph_kernels::porous::take_inside`).
+/// Applied after the step's exchange, so that the solids' wet mass of the
+/// next step sees the inner volume the step ends with.
+pub(super) fn settle(fluid: &mut FluidStore, part: &Partition, tm: &mut PassTimes) {
+    let n = fluid.len();
+    tm.time(pass::POROUS, || {
+        for (k, (a, b)) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()).enumerate() {
+            take_inside(&part.fill[k * n..(k + 1) * n], a, b);
+        }
+    });
 }
 
 /// P Alg. 2 and the solid side of Alg. 3 ([`pore_state`]), before the
@@ -338,7 +388,7 @@ pub(super) fn accelerations(
 pub(super) fn wall_guard(
     p: &Params,
     fluid: &FluidStore,
-    walls: &crate::store::WallStore,
+    walls: &WallStore,
     fb: &porosph_kernels::neighbors::PairLists,
     u_star: Vel,
     dt: f32,

@@ -2,21 +2,26 @@
 //! (PHYSICS.md §2.2-2.4; P §6.1). [`setup`] builds the rows: the pair
 //! volumes V̄_ij in the pair lists, the sources of the fluid rows ([AC]'s
 //! alpha_f (1 + dt div - V0/V), README "Porous solids") and of the wall and
-//! solid rows (P-Eq. 26), and the diagonals; and warm-starts the
-//! pressures. [`solve`] hands the system to the backend's Jacobi loop
-//! (P-Eqs. 27-28) and returns the pressure accelerations.
+//! solid rows (P-Eq. 26; `porosph_kernels::solid_rows`), and the
+//! diagonals; and warm-starts the pressures. [`solve`] hands the system to
+//! the backend's Jacobi loop (P-Eqs. 27-28), in which the elastic bodies
+//! move with their compliance (strong coupling), and returns the pressure
+//! accelerations of the fluid and the solids.
 
 use super::phases::PhaseState;
 use super::prediction::Prediction;
+use super::solid::{BodyResponse, SolidModel, SolidStats};
 use super::timing::{pass, PassTimes};
 use super::volumes::Volumes;
 use super::{Params, StepStats, Workspace};
-use crate::backend::passes::{PressureSystem, SolidSystem, SolveSettings, Unknowns, WallInput};
+use crate::backend::passes::{PressureSystem, SolidSystem, SolidUnknowns, SolveSettings, Unknowns, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
+use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::iisph::{self, FluidRows, Rows, Vel, VelMut, WallRows};
 use porosph_kernels::neighbors::Points;
+use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
 use rayon::prelude::*;
 
 /// The rows of the system and the warm-started boundary pressures.
@@ -27,20 +32,19 @@ pub(super) struct PressureRows<'a> {
     pub walls: Rows<'a>,
     /// Solid rows (sorted solid order).
     pub solids: Rows<'a>,
-    /// 1/M of each body within the solve (0 for a body with fixed particles).
-    pub body_inv_mass: &'a [f32],
     /// Pressures of the active walls and of the solids, warm-started, Pa.
     pub p_active: &'a mut [f32],
     pub p_solid: &'a mut [f32],
 }
 
-/// Pass 4c. Scales the pair lists of `w` by the pair volumes.
+/// Pass 4c. Scales the pair lists of `w` by the pair volumes. The solids'
+/// u*_s are their predicted velocities ([`SolidModel::predict`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn setup<'a>(
-    p: &Params,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     solids: &SolidStore,
+    model: &dyn SolidModel,
     w: &mut Workspace,
     ph: &PhaseState,
     vols: &Volumes,
@@ -53,19 +57,19 @@ pub(super) fn setup<'a>(
     let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
     let (src, diag) = (zeros(n), zeros(n));
     let (src_b, diag_b, p_b) = (zeros(na), zeros(na), zeros(na));
-    // Solid rows: u*_s = v + dt g for free particles (their elastic and
-    // pressure forces come after the solve), the prescribed v for fixed ones.
     let (usx, usy, usz) = (zeros(ns), zeros(ns), zeros(ns));
-    for (k, &i) in w.solid_perm.iter().enumerate() {
-        let i = i as usize;
-        let free = if solids.fixed[i] != 0 { 0.0 } else { dt };
-        usx[k] = solids.vx[i] + free * p.gravity[0];
-        usy[k] = solids.vy[i] + free * p.gravity[1];
-        usz[k] = solids.vz[i] + free * p.gravity[2];
+    let mobility = zeros(ns);
+    if ns > 0 {
+        let v = model.predicted();
+        let c = zeros(ns);
+        model.mobility(solids, c);
+        for (k, &i) in w.solid_perm.iter().enumerate() {
+            let i = i as usize;
+            (usx[k], usy[k], usz[k]) = (v[i].x, v[i].y, v[i].z);
+            mobility[k] = c[i];
+        }
     }
     let u_solid = Vel { x: usx, y: usy, z: usz };
-    let body_inv_mass = rigid_inverse_masses(p, solids, arena);
-    let inv_mass_s = arena.alloc_slice_fill_iter(vols.body_solid.iter().map(|&b| body_inv_mass[b as usize]));
     let (src_s, diag_s) = (zeros(ns), zeros(ns));
     let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
     tm.time(pass::PPE_SETUP, || {
@@ -78,7 +82,7 @@ pub(super) fn setup<'a>(
             vol_wall: vols.vol_wall_full,
             vol_solid: vols.vol_solid,
             u_solid,
-            inv_mass_solid: inv_mass_s,
+            mobility_solid: mobility,
         };
         let fs = if ns > 0 { Some(&mut w.fs) } else { None };
         iisph::fluid_setup(&mut w.ff, &mut w.fb, fs, rows, dt, src, diag);
@@ -88,21 +92,35 @@ pub(super) fn setup<'a>(
             u_star: pred.u_star,
             vm_fluid: vols.vm,
             vol_fluid: vols.vol,
-            u_own: None,
-            inv_mass_own: None,
         };
         iisph::wall_setup(&mut w.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
-            let rows = WallRows {
+            let vol_free = arena.alloc_slice_fill_iter(vols.vol_solid.iter().zip(vols.fixed_solid).map(|(&v, &f)| {
+                if f != 0 {
+                    0.0
+                } else {
+                    v
+                }
+            }));
+            solid_rows::wall_solid_setup(&mut w.bs, vols.vol_wall, vol_free, u_solid, mobility, dt, src_b, diag_b);
+            let rows = SolidRows {
                 vol: vols.vol_solid,
                 sigma: vols.sigma_solid,
-                u_star: pred.u_star,
-                vm_fluid: vols.vm,
+                u: u_solid,
+                mobility,
                 vol_fluid: vols.vol,
-                u_own: Some(u_solid),
-                inv_mass_own: Some(inv_mass_s),
+                vm_fluid: vols.vm,
+                u_fluid: pred.u_star,
+                vol_wall: vols.vol_wall_full,
             };
-            iisph::wall_setup(&mut w.sf, rows, dt, src_s, diag_s);
+            let nb = SolidNeighboursMut {
+                sf: &mut w.sf,
+                sb: &mut w.sb,
+                ss: &mut w.ss,
+                body: vols.body_solid,
+                fixed: vols.fixed_solid,
+            };
+            solid_rows::solid_setup(nb, rows, dt, src_s, diag_s);
         }
         // Warm start from half the last pressure (PHYSICS.md §2.2).
         fluid.pressure.par_iter_mut().for_each(|x| *x *= 0.5);
@@ -118,30 +136,9 @@ pub(super) fn setup<'a>(
         fluid: Rows { source: src, diag },
         walls: Rows { source: src_b, diag: diag_b },
         solids: Rows { source: src_s, diag: diag_s },
-        body_inv_mass,
         p_active: p_b,
         p_solid: p_s,
     }
-}
-
-/// 1/M of every elastic body within the solve, where each moves rigidly
-/// under the sum of the pressure forces on it (strong coupling of the rigid
-/// motion, which carries the fluid's added mass); 0 for a body with fixed
-/// particles, which does not move within the solve.
-fn rigid_inverse_masses<'a>(p: &Params, solids: &SolidStore, arena: &'a Bump) -> &'a [f32] {
-    let nbodies = p.bodies();
-    let body_inv_mass = arena.alloc_slice_fill_copy(nbodies, 0.0f32);
-    let mass = arena.alloc_slice_fill_copy(nbodies, 0.0f64);
-    let anchored = arena.alloc_slice_fill_copy(nbodies, false);
-    for i in 0..solids.len() {
-        let b = p.solid_group[solids.body[i] as usize] as usize;
-        mass[b] += f64::from(solids.mass[i]);
-        anchored[b] |= solids.fixed[i] != 0;
-    }
-    for b in 0..nbodies {
-        body_inv_mass[b] = if anchored[b] || mass[b] <= 0.0 { 0.0 } else { (1.0 / mass[b]) as f32 };
-    }
-    body_inv_mass
 }
 
 /// What pass 5 gives the later passes.
@@ -150,15 +147,20 @@ pub(super) struct Solved<'a> {
     pub ap: [&'a mut [f32]; 3],
     /// Solid pressures (sorted solid order), Pa.
     pub p_solid: &'a [f32],
+    /// a^p_s of the solids, the bodies' response to the final pressures
+    /// (store order), m/s^2.
+    pub accel_solid: &'a [Vec3],
 }
 
 /// Pass 5 on the step's backend: the pressures of every row and the final
-/// a^p, until the mean predicted density error is at most eta.
+/// accelerations, until the mean predicted density error is at most eta.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve<'a>(
     p: &Params,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
+    solids: &SolidStore,
+    model: &mut dyn SolidModel,
     w: &mut Workspace,
     vols: &Volumes,
     rows: PressureRows<'a>,
@@ -166,13 +168,13 @@ pub(super) fn solve<'a>(
     arena: &'a Bump,
     st: &mut StepStats,
 ) -> Solved<'a> {
-    let n = fluid.len();
+    let (n, ns) = (fluid.len(), solids.len());
     let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
     let (apx, apy, apz) = (zeros(n), zeros(n), zeros(n));
+    let (asx, asy, asz) = (zeros(ns), zeros(ns), zeros(ns));
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (rows.fluid.diag[i] != 0.0) as u32 as f64).max(1.0);
-    let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, body_inv_mass, p_active, p_solid } =
-        rows;
+    let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid } = rows;
     let sys = PressureSystem {
         support: p.kernel.support,
         fluid_grid: &w.fluid_grid,
@@ -190,12 +192,12 @@ pub(super) fn solve<'a>(
         rows: fluid_rows,
         vol_wall: vols.vol_wall_full,
         wall_rows,
-        solids: (!p_solid.is_empty()).then_some(SolidSystem {
+        solids: (ns > 0).then_some(SolidSystem {
             fs: &w.fs,
-            sf: &w.sf,
+            solid: SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: vols.body_solid, fixed: vols.fixed_solid },
+            bs: &w.bs,
+            vol: vols.vol_solid,
             rows: solid_rows,
-            body: vols.body_solid,
-            body_inv_mass,
         }),
         settings: SolveSettings {
             dt,
@@ -206,17 +208,35 @@ pub(super) fn solve<'a>(
             rows_active: rows_active as f32,
         },
     };
+    let accel_solid = arena.alloc_slice_fill_copy(ns, Vec3::ZERO);
+    let mut response = BodyResponse {
+        model,
+        solids,
+        perm: &w.solid_perm,
+        force: arena.alloc_slice_fill_copy(ns, Vec3::ZERO),
+        accel: &mut *accel_solid,
+        tolerance: p.elastic_tolerance,
+        max_iterations: p.elastic_max_iterations,
+        stats: SolidStats::default(),
+    };
     let x = Unknowns {
         p: &mut fluid.pressure,
         p_wall: &mut walls.pressure,
         p_active,
-        p_solid: &mut *p_solid,
         ap: VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz },
+        solids: (ns > 0).then_some(SolidUnknowns {
+            p: &mut *p_solid,
+            accel: VelMut { x: &mut *asx, y: &mut *asy, z: &mut *asz },
+            response: &mut response,
+        }),
     };
     let report = st.times.time(pass::PRESSURE_SOLVE, || w.backend.pressure_solve(&sys, x, arena));
     st.iterations = report.iterations;
     st.density_error = report.density_error;
+    st.solid_density_error = report.solid_error;
     st.solve_restarts = report.restarts;
     st.times.gpu_ms[pass::PRESSURE_SOLVE] = report.gpu_ms.unwrap_or(0.0);
-    Solved { ap: [apx, apy, apz], p_solid }
+    st.cg_iterations += response.stats.iterations;
+    st.cg_residual = st.cg_residual.max(response.stats.residual);
+    Solved { ap: [apx, apy, apz], p_solid, accel_solid }
 }

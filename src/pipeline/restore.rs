@@ -51,7 +51,8 @@ impl Simulation {
             return Err(format!("dt {dt} s is not a positive finite time step"));
         }
         let params = Params::from_scene(&scene);
-        let work = wall_workspace(&mut walls, &params);
+        let mut work = wall_workspace(&mut walls, &params);
+        (work.solid_own, work.solid_v0) = super::volumes::rest_rows(&params, &solids);
         let solid_model = params.solid_model(&solids);
         Ok(Simulation {
             scene,

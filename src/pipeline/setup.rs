@@ -184,7 +184,7 @@ impl Simulation {
         walls.sigma_static = vec![0.0; nw];
         walls.id = (nf as u32..(nf + nw) as u32).collect();
 
-        // Solids: mass rho_s d^3; pressure-solve rest volumes below.
+        // Solids: mass rho_s d^3.
         let mut solids = SolidStore::default();
         let ns = sampled_solids.positions.len();
         let cell = params.cell_volume();
@@ -202,7 +202,6 @@ impl Simulation {
                 (&mut solids.vy, v[1]),
                 (&mut solids.vz, v[2]),
                 (&mut solids.mass, scene.solids[body as usize].density * cell),
-                (&mut solids.ppe_volume, cell),
                 (&mut solids.qx, 0.0),
                 (&mut solids.qy, 0.0),
                 (&mut solids.qz, 0.0),
@@ -219,15 +218,10 @@ impl Simulation {
         solids.body = sampled_solids.body;
         solids.fixed = sampled_solids.fixed;
         solids.id = ((nf + nw) as u32..(nf + nw + ns) as u32).collect();
-        solids.ppe_volume = super::solid::pressure_volumes(
-            &solids,
-            &params.particle_groups(&solids),
-            &params.kernel,
-            flat_wall_gamma(&params.kernel, params.h),
-        );
         let solid_model = params.solid_model(&solids);
 
-        let work = wall_workspace(&mut walls, &params);
+        let mut work = wall_workspace(&mut walls, &params);
+        (work.solid_own, work.solid_v0) = super::volumes::rest_rows(&params, &solids);
         let mut bb = PairLists::default();
         let pts = Points { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut bb, pts, pts, &work.wall_grid, None, &params.kernel);

@@ -1,60 +1,71 @@
 //! Elastic solids in the step (PHYSICS.md §3; passes 6 and 8 of §6).
 //!
 //! The fluid code sees a solid only as particles with positions,
-//! velocities, masses and pressure-solve rest volumes (the [`SolidStore`]);
-//! how a solid deforms is behind [`SolidModel`]. [`Peer2018`] is the implicit
+//! velocities and masses (the [`SolidStore`]) and, within the pressure
+//! solve, the bodies' response to forces; how a solid deforms is behind
+//! [`SolidModel`]. [`Peer2018`] is the implicit
 //! corotated SPH elasticity of Peer et al. 2018; another model (the paper's
 //! Example 7 uses a granular one) implements the same trait.
 
 use super::timing::{pass, PassTimes};
-use super::{Params, Workspace};
-use crate::store::{SolidStore, WallStore};
-use bumpalo::Bump;
+use super::Params;
+use crate::backend::passes::Compliance;
+use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
-use porosph_kernels::iisph::{self, VelMut};
+use porosph_kernels::iisph::{Vel, VelMut};
 use rayon::prelude::*;
-
-/// Rest volumes of the solid particles in the pressure solve, Akinci-style
-/// as PHYSICS.md §2.3 gives them: V0_s = gamma / sum_{s'} W_ss' over the
-/// rest neighbours in the same body (incl. self), with `gamma` the flat
-/// two-layer lattice sum of the walls ([`super::setup::flat_wall_gamma`]):
-/// so V0_s = d^3 at a flat surface (the only layer within reach of the
-/// fluid is the surface and the one behind it), more at convex edges and
-/// corners. (V0_s = d^3 everywhere made the rows of block edges
-/// ill-conditioned, as it did for walls: a floating block blew up in 9
-/// steps.)
-/// `group` is the elastic body of each particle.
-pub fn pressure_volumes(solids: &SolidStore, group: &[u32], kernel: &CubicSpline, gamma: f32) -> Vec<f32> {
-    let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
-    let rest = RestState::new(&x0, group, &solids.mass, kernel);
-    (0..solids.len())
-        .map(|i| {
-            let s = kernel.w0() + rest.range(i).map(|p| kernel.w(rest.dx0[p].length())).sum::<f32>();
-            gamma / s
-        })
-        .collect()
-}
 
 /// What a solid model did in one step.
 pub type SolidStats = CgStats;
 
-/// A model of how solid particles deform and move.
+/// A model of how solid particles deform and move. One step of it is split
+/// in three, around the pressure solve (P Alg. 2 and 4):
+/// [`SolidModel::deform`] (the strain at the current positions, which the
+/// pore pressure needs), [`SolidModel::predict`] (the velocities under
+/// gravity and the model's own forces alone), and, within the pressure
+/// solve, [`SolidModel::respond`] (the accelerations under given forces,
+/// the model's compliance) from which the step's velocities are
+/// v^{n+1} = v^pred + dt a.
 pub trait SolidModel: Send + Sync {
     /// A short name, e.g. "peer2018".
     fn name(&self) -> &'static str;
 
-    /// One step for every solid particle: sets the new velocities v^{n+1}
-    /// in `solids` (positions are integrated by the pipeline afterwards),
-    /// given the external acceleration `a_ext` of each particle (gravity and
-    /// the fluid's pressure force over the mass, m/s^2) and `pore`, the pore
-    /// stress eta p^pore of each particle (Pa) or `None`. The velocities of
-    /// fixed particles are already prescribed in `solids` and stay. Writes
-    /// the outputs `stress` and `strain_trace`.
-    fn advance(&mut self, solids: &mut SolidStore, a_ext: &[Vec3], pore: Option<&[f32]>, dt: f32) -> SolidStats;
+    /// The deformation at the current positions; writes the output
+    /// `strain_trace` (and whatever else the model keeps per particle).
+    fn deform(&mut self, solids: &mut SolidStore);
+
+    /// The velocities every particle would have at the end of the step
+    /// under gravity `g` and the model's own forces (with `pore`, the pore
+    /// stress eta p^pore of each particle in Pa, or `None`), in
+    /// [`SolidModel::predicted`]; fixed particles keep their prescribed
+    /// velocity. Writes the output `stress`.
+    fn predict(&mut self, solids: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32) -> SolidStats;
+
+    /// The velocities of the last [`SolidModel::predict`] (store order), m/s.
+    fn predicted(&self) -> &[Vec3];
+
+    /// The accelerations `accel` (store order, m/s^2; the warm start on
+    /// entry) of the particles under the forces `force` (N) within this
+    /// step: the solution of the implicit step's system for a force alone
+    /// (fixed particles: 0), to the relative residual `tolerance` or
+    /// `max_iterations`.
+    fn respond(
+        &mut self,
+        solids: &SolidStore,
+        force: &[Vec3],
+        accel: &mut [Vec3],
+        tolerance: f32,
+        max_iterations: u32,
+    ) -> SolidStats;
+
+    /// An estimate of each particle's mobility, d a_i / d F_i of
+    /// [`SolidModel::respond`] (1/kg; 0 for fixed particles), for the
+    /// pressure solve's diagonals.
+    fn mobility(&self, solids: &SolidStore, out: &mut [f32]);
 
     /// Bytes held.
     fn bytes(&self) -> usize;
@@ -63,7 +74,8 @@ pub trait SolidModel: Send + Sync {
 /// Implicit corotated SPH elasticity (Peer et al. 2018, PHYSICS.md §3.1-3.3):
 /// rotations by Müller's extraction, corotated strain and stress (P-Eqs.
 /// 4-5), and the velocities from conjugate gradients on the linearised
-/// implicit system with frozen rotations.
+/// implicit system with frozen rotations: (M + dt^2 K) v = M v^n + dt (f +
+/// M g) for the prediction, (M + dt^2 K) a = F for the response to a force.
 pub struct Peer2018 {
     rest: RestState,
     /// Lamé parameters of each particle (from its body).
@@ -71,6 +83,8 @@ pub struct Peer2018 {
     /// Relative residual at which CG stops.
     tolerance: f32,
     max_iterations: u32,
+    /// dt of the last prediction (the system of the response).
+    dt: f32,
     // Per-step buffers, kept for their capacity.
     x: Vec<Vec3>,
     v: Vec<Vec3>,
@@ -105,6 +119,7 @@ impl Peer2018 {
             lame,
             tolerance,
             max_iterations,
+            dt: 0.0,
             x: Vec::new(),
             v: Vec::new(),
             rot: Vec::new(),
@@ -122,9 +137,20 @@ impl Peer2018 {
         &self.rest
     }
 
-    /// The elastic forces f_i of the last [`SolidModel::advance`], N.
+    /// The elastic forces f_i of the last [`SolidModel::predict`], N.
     pub fn elastic_forces(&self) -> &[Vec3] {
         &self.force
+    }
+
+    fn system<'a>(&'a self, solids: &'a SolidStore) -> System<'a> {
+        System {
+            rest: &self.rest,
+            def: &self.def,
+            lame: &self.lame,
+            mass: &solids.mass,
+            fixed: &solids.fixed,
+            dt: self.dt,
+        }
     }
 }
 
@@ -133,36 +159,40 @@ impl SolidModel for Peer2018 {
         "peer2018"
     }
 
-    fn advance(&mut self, s: &mut SolidStore, a_ext: &[Vec3], pore: Option<&[f32]>, dt: f32) -> SolidStats {
+    fn deform(&mut self, s: &mut SolidStore) {
         let n = s.len();
         self.x.clear();
         self.x.extend((0..n).map(|i| Vec3::new(s.x[i], s.y[i], s.z[i])));
         self.rot.clear();
         self.rot.extend((0..n).map(|i| Quat::from_xyzw(s.qx[i], s.qy[i], s.qz[i], s.qw[i])));
         self.def.resize(n, Deformation::default());
-        self.t.resize(n, Mat3::ZERO);
-        self.von_mises.resize(n, 0.0);
-        self.force.resize(n, Vec3::ZERO);
-
-        // PHYSICS.md §3.2: rotations, strain, stress, elastic forces.
+        // PHYSICS.md §3.2 steps 1-5: rotations and strain.
         deform(&self.rest, &self.x, &mut self.rot, &mut self.def);
-        stress_rl(&self.def, &self.lame, pore, &mut self.t, &mut self.von_mises);
-        forces(&self.rest, &self.t, &mut self.force);
         for (i, q) in self.rot.iter().enumerate() {
             (s.qx[i], s.qy[i], s.qz[i], s.qw[i]) = (q.x, q.y, q.z, q.w);
         }
-        s.stress.copy_from_slice(&self.von_mises);
         s.strain_trace.par_iter_mut().zip(self.def.par_iter()).for_each(|(t, d)| *t = trace(&d.strain));
+    }
 
-        // PHYSICS.md §3.3: M A v = m v + dt (m a_ext + f), warm start
-        // v + dt a_ext; fixed particles keep their prescribed velocity.
+    fn predict(&mut self, s: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32) -> SolidStats {
+        let n = s.len();
+        self.dt = dt;
+        self.t.resize(n, Mat3::ZERO);
+        self.von_mises.resize(n, 0.0);
+        self.force.resize(n, Vec3::ZERO);
+        // PHYSICS.md §3.2 steps 5-6: stress and elastic forces.
+        stress_rl(&self.def, &self.lame, pore, &mut self.t, &mut self.von_mises);
+        forces(&self.rest, &self.t, &mut self.force);
+        s.stress.copy_from_slice(&self.von_mises);
+        // PHYSICS.md §3.3: (M + dt^2 K) v = m v + dt (m g + f), warm start
+        // v + dt g; fixed particles keep their prescribed velocity.
         self.v.clear();
         self.v.extend((0..n).map(|i| {
             let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
             if s.fixed[i] != 0 {
                 v
             } else {
-                v + dt * a_ext[i]
+                v + dt * g
             }
         }));
         self.rhs.clear();
@@ -172,16 +202,46 @@ impl SolidModel for Peer2018 {
             if s.fixed[i] != 0 {
                 m * v
             } else {
-                m * v + dt * (m * a_ext[i] + self.force[i])
+                m * v + dt * (m * g + self.force[i])
             }
         }));
         let sys = System { rest: &self.rest, def: &self.def, lame: &self.lame, mass: &s.mass, fixed: &s.fixed, dt };
-        let stats =
-            conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg);
-        for (i, v) in self.v.iter().enumerate() {
-            (s.vx[i], s.vy[i], s.vz[i]) = (v.x, v.y, v.z);
-        }
+        conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg)
+    }
+
+    fn predicted(&self) -> &[Vec3] {
+        &self.v
+    }
+
+    fn respond(
+        &mut self,
+        s: &SolidStore,
+        force: &[Vec3],
+        accel: &mut [Vec3],
+        tolerance: f32,
+        max_iterations: u32,
+    ) -> SolidStats {
+        let mut cg = std::mem::take(&mut self.cg);
+        let stats = conjugate_gradients(&self.system(s), force, accel, tolerance, max_iterations, &mut cg);
+        self.cg = cg;
         stats
+    }
+
+    fn mobility(&self, s: &SolidStore, out: &mut [f32]) {
+        // The diagonal of M + dt^2 K for a particle moved alone (rest
+        // lattice, no rotation, isotropic average of the direction):
+        // k_i = V_i0 sum_j |w_ij|^2 (4 mu + lambda) / 3.
+        let dt2 = self.dt * self.dt;
+        out.par_iter_mut().enumerate().for_each(|(i, c)| {
+            if s.fixed[i] != 0 {
+                *c = 0.0;
+                return;
+            }
+            let w2: f32 = self.rest.range(i).map(|p| self.rest.w[p].length_squared()).sum();
+            let Lame { mu, lambda } = self.lame[i];
+            let k = self.rest.volume[i] * w2 * (4.0 * mu + lambda) / 3.0;
+            *c = 1.0 / (s.mass[i] + dt2 * k);
+        });
     }
 
     fn bytes(&self) -> usize {
@@ -196,82 +256,87 @@ impl SolidModel for Peer2018 {
     }
 }
 
-/// Pass 8 (P Alg. 2): the solids' step under gravity and the fluid's
-/// pressure force F_s (the reaction of the solid terms of a^p,
-/// `iisph::solid_pressure_force`), with the pore stress `pore` (P-Eq. 5);
-/// then their contact with the walls. `p_solid` are the solid pressures of
-/// the solve (sorted order), `p_fluid` and `vol_fluid` the fluid's.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn advance(
+/// Inner iterations of the bodies' response per Jacobi sweep of the
+/// pressure solve (warm-started from the last sweep's answer). Measured on
+/// a dropped stiff block and a floating soft cube: 1, 2 and 4 give the
+/// same sweep counts and stability; 4 costs about a third more solve time
+/// than 2, and 1 leaves more to the exact solve at the end.
+pub const RESPONSE_ITERATIONS_PER_SWEEP: u32 = 2;
+
+/// The bodies' compliance as the pressure solve asks for it
+/// (`backend::passes::Compliance`): forces and accelerations in the sorted
+/// order of the pair lists, the model's in store order.
+pub(super) struct BodyResponse<'a> {
+    pub model: &'a mut dyn SolidModel,
+    pub solids: &'a SolidStore,
+    /// Sorted index -> store index.
+    pub perm: &'a [u32],
+    /// Store-order scratch: forces and accelerations.
+    pub force: &'a mut [Vec3],
+    pub accel: &'a mut [Vec3],
+    pub tolerance: f32,
+    pub max_iterations: u32,
+    /// The last exact response.
+    pub stats: SolidStats,
+}
+
+impl Compliance for BodyResponse<'_> {
+    fn respond(&mut self, force: Vel, accel: VelMut, exact: bool) {
+        for (k, &i) in self.perm.iter().enumerate() {
+            self.force[i as usize] = Vec3::new(force.x[k], force.y[k], force.z[k]);
+        }
+        let (tol, max) =
+            if exact { (self.tolerance, self.max_iterations) } else { (self.tolerance, RESPONSE_ITERATIONS_PER_SWEEP) };
+        let stats = self.model.respond(self.solids, self.force, self.accel, tol, max);
+        if exact {
+            self.stats = stats;
+        }
+        for (k, &i) in self.perm.iter().enumerate() {
+            let a = self.accel[i as usize];
+            (accel.x[k], accel.y[k], accel.z[k]) = (a.x, a.y, a.z);
+        }
+    }
+}
+
+/// Alg. 2's first line: the solids' strain at the current positions.
+pub(super) fn strain(solids: &mut SolidStore, model: &mut dyn SolidModel, tm: &mut PassTimes) {
+    tm.time(pass::ELASTICITY, || model.deform(solids));
+}
+
+/// Alg. 2's last line: stress, elastic forces and the predicted velocities
+/// under gravity (P-Eq. 5 with the pore stress `pore`).
+pub(super) fn predict(
     p: &Params,
     solids: &mut SolidStore,
     model: &mut dyn SolidModel,
-    walls: &WallStore,
-    w: &Workspace,
-    p_solid: &[f32],
-    p_fluid: &[f32],
-    vol_fluid: &[f32],
     pore: Option<&[f32]>,
     dt: f32,
-    arena: &Bump,
     tm: &mut PassTimes,
 ) -> SolidStats {
-    let ns = solids.len();
-    tm.time(pass::ELASTICITY, || {
-        let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-        let (fx, fy, fz) = (zeros(ns), zeros(ns), zeros(ns));
-        iisph::solid_pressure_force(&w.sf, p_solid, p_fluid, vol_fluid, VelMut { x: fx, y: fy, z: fz });
-        let g = Vec3::from(p.gravity);
-        let a_ext = arena.alloc_slice_fill_copy(ns, g);
-        for (k, &i) in w.solid_perm.iter().enumerate() {
-            let i = i as usize;
-            solids.pressure[i] = p_solid[k];
-            a_ext[i] = g + Vec3::new(fx[k], fy[k], fz[k]) / solids.mass[i];
-        }
-        let stats = model.advance(solids, a_ext, pore, dt);
-        wall_contact(p, solids, walls, w);
-        stats
-    })
+    tm.time(pass::ELASTICITY, || model.predict(solids, Vec3::from(p.gravity), pore, dt))
 }
 
-/// Contact of solids with the static walls (walls do not take part in the
-/// elastic solve): a solid particle closer than d to a wall particle may
-/// not move further towards the wall. Its velocity loses the component
-/// along the wall normal n that points into the wall, n the direction of
-/// -sum_b grad W_sb over its wall neighbours (frictionless, inelastic
-/// contact; a velocity projection after the elastic solve).
-fn wall_contact(p: &Params, solids: &mut SolidStore, walls: &WallStore, w: &Workspace) {
-    let d2 = p.h * p.h;
-    for (b, blk) in w.sb.used().iter().enumerate() {
-        for q in 0..blk.start.len().saturating_sub(1) {
-            let k = b * porosph_kernels::blocks::BLOCK + q;
-            let i = w.solid_perm[k] as usize;
-            if solids.fixed[i] != 0 {
-                continue;
-            }
-            let (xs, ys, zs) = (solids.x[i], solids.y[i], solids.z[i]);
-            let mut touching = false;
-            let mut n = Vec3::ZERO;
-            for pr in blk.range(q) {
-                if blk.w[pr] <= 0.0 {
-                    continue;
-                }
-                let j = blk.j[pr] as usize;
-                let r2 = (xs - walls.x[j]).powi(2) + (ys - walls.y[j]).powi(2) + (zs - walls.z[j]).powi(2);
-                touching |= r2 < d2;
-                n -= Vec3::new(blk.gx[pr], blk.gy[pr], blk.gz[pr]);
-            }
-            let len = n.length();
-            if !touching || len <= 0.0 {
-                continue;
-            }
-            let n = n / len;
-            let v = Vec3::new(solids.vx[i], solids.vy[i], solids.vz[i]);
-            let vn = v.dot(n);
-            if vn < 0.0 {
-                let v = v - vn * n;
+/// Alg. 4's first line: v^{n+1} = v^pred + dt a^p_s for the free particles
+/// (`accel` in store order; fixed ones keep their prescribed velocity), and
+/// the pressures of the solve (`p_solid` in the sorted order `perm`).
+pub(super) fn finish(
+    solids: &mut SolidStore,
+    model: &dyn SolidModel,
+    accel: &[Vec3],
+    p_solid: &[f32],
+    perm: &[u32],
+    dt: f32,
+    tm: &mut PassTimes,
+) {
+    tm.time(pass::ELASTICITY, || {
+        for (k, &i) in perm.iter().enumerate() {
+            solids.pressure[i as usize] = p_solid[k];
+        }
+        for (i, (v, a)) in model.predicted().iter().zip(accel).enumerate() {
+            if solids.fixed[i] == 0 {
+                let v = *v + dt * *a;
                 (solids.vx[i], solids.vy[i], solids.vz[i]) = (v.x, v.y, v.z);
             }
         }
-    }
+    });
 }

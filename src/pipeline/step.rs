@@ -182,34 +182,38 @@ fn step_passes(
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
     neighbours::search(p, fluid, walls, solids, w, arena, tm);
-    let part = porous.then(|| porous::partition(p, fluid, solids, w, arena, tm));
+    let part = porous.then(|| porous::partition(p, fluid, solids, walls, w, arena, tm));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
     let ph = phases::bookkeeping(p, fluid, porous, arena, tm);
     let vols = volumes::volumes(p, fluid, walls, solids, w, &ph, arena, tm);
     let pred = prediction::predict(p, fluid, &w.ff, &ph, dt, arena, tm);
-    // Alg. 2: phi, p^pore (with the last step's strain), Darcy flux and
+    // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and
     // u_beta on the solids (P-Eqs. 1, 9, 15, 19); and Alg. 3's fluid terms
     // that need plain gradients: u_beta,f, q_f, grad p^pore_f, Gamma
-    // (P-Eqs. 13, 16-22).
-    let terms = part.map(|part| porous::solid_terms(p, fluid, solids, w, &part, p.mixture(), arena, tm));
+    // (P-Eqs. 13, 16-22); the solids' stress (P-Eq. 5) and the velocities
+    // they would have without the fluid's pressure.
+    if !solids.is_empty() {
+        solid::strain(solids, model, tm);
+    }
+    let terms = part.as_ref().map(|part| porous::solid_terms(p, fluid, solids, w, part, p.mixture(), arena, tm));
     if let Some(t) = &terms {
         st.max_darcy_speed = t.max_darcy_speed;
     }
-    // Alg. 1: a^press, the pressure solve with pressure boundaries (P-Eqs.
-    // 25-29).
-    let rows = pressure::setup(p, fluid, walls, solids, w, &ph, &vols, &pred, dt, arena, &mut st.times);
-    let solved = pressure::solve(p, fluid, walls, w, &vols, rows, dt, arena, &mut st);
-    let tm = &mut st.times;
-    let [apx, apy, apz] = solved.ap;
-    // Alg. 2's stress and boundary forces, and Alg. 4's integration of the
-    // solids (Peer et al. 2018; P-Eqs. 4-5).
     if !solids.is_empty() {
-        let pore = terms.as_ref().and_then(|t| t.pore_stress);
-        let (p_fluid, vol_fluid) = (&fluid.pressure, vols.vol);
-        let cg = solid::advance(p, solids, model, walls, w, solved.p_solid, p_fluid, vol_fluid, pore, dt, arena, tm);
+        let cg = solid::predict(p, solids, model, terms.as_ref().and_then(|t| t.pore_stress), dt, tm);
         st.cg_iterations = cg.iterations;
         st.cg_residual = cg.residual;
+    }
+    // Alg. 1: a^press, the pressure solve with pressure boundaries (P-Eqs.
+    // 25-29), in which the bodies give way with their compliance; Alg. 2's
+    // boundary forces on the solids and Alg. 4's velocities of the solids.
+    let rows = pressure::setup(fluid, walls, solids, model, w, &ph, &vols, &pred, dt, arena, &mut st.times);
+    let solved = pressure::solve(p, fluid, walls, solids, model, w, &vols, rows, dt, arena, &mut st);
+    let tm = &mut st.times;
+    let [apx, apy, apz] = solved.ap;
+    if !solids.is_empty() {
+        solid::finish(solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm, dt, tm);
     }
     // Alg. 3: a^cap and a^pore (P-Eqs. 10, 14), added to a^p.
     if let Some(t) = &terms {
@@ -230,5 +234,8 @@ fn step_passes(
     // Alg. 4: integration of P-Eqs. 6-8, then sum_k (alpha_k + beta_k) = 1.
     integrate::positions(fluid, solids, pred.u_star, Vel { x: apx, y: apy, z: apz }, dt, tm);
     integrate::correct_fractions(fluid, next, arena, tm);
+    if let Some(part) = &part {
+        porous::settle(fluid, part, tm);
+    }
     st
 }

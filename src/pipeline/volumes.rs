@@ -8,7 +8,10 @@ use super::timing::{pass, PassTimes};
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
+use glam::Vec3;
+use porosph_kernels::elasticity::RestState;
 use porosph_kernels::iisph::{self, SolidPairs};
+use porosph_kernels::solid_rows::{self, SolidNeighbours};
 use rayon::prelude::*;
 
 /// What pass 2 gives the pressure solve.
@@ -23,8 +26,10 @@ pub(super) struct Volumes<'a> {
     /// V of every wall (0 for inactive ones), m^3.
     pub vol_wall_full: &'a [f32],
     /// Solid rows, in the sorted solid order: the body of each particle,
-    /// sigma_s (own body and fluid) and V_s (m^3).
+    /// sigma_s and V_s (m^3; `solid_rows::solid_volumes`, V0_s from [`rest_rows`]).
     pub body_solid: &'a [u32],
+    /// 1 for the fixed solid particles (sorted order).
+    pub fixed_solid: &'a [u32],
     pub sigma_solid: &'a [f32],
     pub vol_solid: &'a [f32],
 }
@@ -47,18 +52,21 @@ pub(super) fn volumes<'a>(
     let (sigma_b, vol_b, vol_b_full) = (zeros(na), zeros(na), zeros(walls.len()));
     let body_s =
         arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
-    let v0_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.ppe_volume[i as usize]));
+    let fixed_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.fixed[i as usize]));
+    let v0_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_v0[i as usize]));
+    let v0_free =
+        arena.alloc_slice_fill_iter(fixed_s.iter().zip(v0_s.iter()).map(|(&f, &v)| if f != 0 { 0.0 } else { v }));
+    let own = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_own[i as usize]));
     let (sigma_s, vol_s) = (zeros(ns), zeros(ns));
     tm.time(pass::DENSITIES, || {
         let fs = (ns > 0).then_some(SolidPairs { pairs: &w.fs, values: &*v0_s });
         iisph::fluid_volumes(&w.ff, &w.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
-        if ns > 0 {
-            // A solid row counts only its own body (PHYSICS.md §2.3).
-            let sigma_ss = zeros(ns);
-            iisph::kernel_sums_within(&w.ss, v0_s, body_s, sigma_ss);
-            iisph::wall_volumes(&w.sf, &w.solid_rows, sigma_ss, v0_s, ph.v0, sigma_s, vol_s);
-        }
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
+        if ns > 0 {
+            let nb = SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: body_s, fixed: fixed_s };
+            solid_rows::solid_volumes(nb, own, ph.v0, &walls.rest_volume, v0_s, sigma_s, vol_s);
+            solid_rows::wall_solid_volumes(&w.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
+        }
         // Output density of every wall: its fluid-free value, then the
         // active walls' (no dependence on the last step's active set, which
         // a resumed run does not have).
@@ -81,7 +89,47 @@ pub(super) fn volumes<'a>(
         vol_wall: vol_b,
         vol_wall_full: vol_b_full,
         body_solid: body_s,
+        fixed_solid: fixed_s,
         sigma_solid: sigma_s,
         vol_solid: vol_s,
     }
+}
+
+/// The rest data of the solid rows of every solid particle (store order),
+/// from the body's rest lattice: with n_i = h^3 sum_j W_ij over the body's
+/// rest neighbours (incl. itself) and gamma the same sum at a flat face
+/// (`setup::flat_wall_gamma`, 0.725):
+/// - omega_s = min(n_i, gamma), the share of the row's neighbourhood its own
+///   body fills: a solid is sampled on the fluid's lattice, so at its faces,
+///   edges and corners this is the share the fluid does not fill at rest
+///   (0.725 at a face, less at an edge or corner: sigma_s = 1 with the fluid
+///   at rest spacing). Inside the body the full lattice sum (1) is cut to
+///   gamma: a row there would read any fluid particle at the edge of its
+///   support as compression, with a diagonal ~ |grad W|^2 near 0, and answer
+///   it with an unbounded pressure.
+/// - V0_s = h^3 min(1, gamma / n_i), the volume the other rows see: h^3 at
+///   faces, edges and corners (the lattice's own share, as for the fluid),
+///   Akinci's gamma / sum_j W_ij (PHYSICS.md §2.3) inside, where the
+///   absorbed liquid shares the space with the solid (with h^3 there, a
+///   partly absorbed particle inside a soaking block read as compressed by
+///   the solid alone and was pushed out at up to 1.8e3 m/s).
+///
+/// Both are constant: the body's own density is the elastic model's
+/// (`solid_rows` module doc). (Akinci's volumes everywhere, used before,
+/// give the edges and corners of a body more than their lattice share: a
+/// cube's edges read sigma 1.18 and its corners 1.31 with the fluid at
+/// rest, 3.2e4 Pa on the corners of a soft cube after one step, which
+/// kicked them into the body at 1.6 m/s.)
+pub(super) fn rest_rows(p: &Params, solids: &SolidStore) -> (Vec<f32>, Vec<f32>) {
+    let kernel = &p.kernel;
+    let gamma = super::setup::flat_wall_gamma(kernel, p.h);
+    let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
+    let rest = RestState::new(&x0, &p.particle_groups(solids), &p.particle_rest_mass(solids), kernel);
+    let cell = p.cell_volume();
+    (0..solids.len())
+        .map(|i| {
+            let n = cell * (kernel.w0() + rest.range(i).map(|k| kernel.w(rest.dx0[k].length())).sum::<f32>());
+            (n.min(gamma), cell * (gamma / n).min(1.0))
+        })
+        .unzip()
 }

@@ -184,8 +184,6 @@ soa! {
         z0: Vec<f32> ["m"],
         /// Mass m_s, kg.
         mass: Vec<f32> ["kg"],
-        /// Rest volume in the pressure solve, V0_s, m^3 (PHYSICS.md §2.3).
-        ppe_volume: Vec<f32> ["m^3"],
         /// Index of the body (`[[solid]]` entry).
         body: Vec<u32> [""],
         /// 1 where the velocity is prescribed (the body's `fixed` shape).

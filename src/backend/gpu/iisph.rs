@@ -393,6 +393,7 @@ impl IisphGpu {
             gpu_ms,
             submits,
             restarts: 0,
+            solid_error: 0.0,
         })
     }
 

@@ -1,0 +1,646 @@
+//! Deformable porous solids that hold (issue 14): soft, light, free elastic
+//! bodies coupled with the pressure solve (the bodies' compliance inside
+//! the Jacobi loop, `src/pipeline/pressure.rs`; solid rows with walls and
+//! other bodies, `porosph_kernels::solid_rows`), at the paper's parameters
+//! (P Table 2: mu 2e4 Pa, lambda 1e4 Pa, 600 kg/m^3, porous constants) and
+//! the fluid's time step (max_dt 2 ms, CFL rule).
+//!
+//! The tests here are sized for CI (d = 2 cm where the physics allows, a
+//! few seconds of simulated time). The issue's full-size runs (d = 1 cm,
+//! 5-10 s, three time steps) are the `#[ignore]`d tests at the end:
+//! `cargo test --release --test deformable -- --ignored --nocapture`
+//! (tens of minutes on 2 cores).
+
+mod common;
+
+use porosph::pipeline::Simulation;
+use std::collections::HashMap;
+
+/// P Table 2's porous block, absorbing `phase` (outer pore pressure p_0k
+/// 2.5e4 Pa, p_0 5e4 Pa: strain-free saturation 0.5).
+fn porous(phase: &str, swelling: f32, gains_mass: bool) -> String {
+    format!(
+        "[solid.porous]\nporosity = 0.6\nrest_pore_pressure = 5e4\nbiot_modulus = 4.9e4\nswelling = {swelling}\n\
+         capillarity = 2.0\nabsorption = 1.0\ngains_mass = {gains_mass}\n\
+         [solid.porous.phase.{phase}]\npermeability = 1e-7\nouter_pore_pressure = 2.5e4\n"
+    )
+}
+
+/// A closed tank `[0, tank]` of water (1000 kg/m^3, `viscosity` Pa s) up to
+/// `level`, at spacing `d` and `max_dt`, with the given `[[solid]]` tables.
+fn pool(d: f32, max_dt: f32, tank: [f32; 3], level: f32, viscosity: f32, solids: &str) -> String {
+    let [tx, ty, tz] = tank;
+    format!(
+        "[simulation]\nparticle_spacing = {d}\nend_time = 100.0\nmax_dt = {max_dt}\n\
+         [[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = {viscosity}\n\
+         [[wall]]\nbox = {{ min = [0.0, 0.0, 0.0], max = [{tx}, {ty}, {tz}] }}\ncontainer = true\n\
+         [[fluid]]\nbox = {{ min = [0.0, 0.0, 0.0], max = [{tx}, {level}, {tz}] }}\nfractions = {{ water = 1.0 }}\n\
+         {solids}"
+    )
+}
+
+/// A soft elastic box (P Table 2: mu 2e4 Pa, lambda 1e4 Pa) of `density`.
+fn soft_box(name: &str, lo: [f32; 3], hi: [f32; 3], density: f32) -> String {
+    format!(
+        "[[solid]]\nname = \"{name}\"\nbox = {{ min = [{}, {}, {}], max = [{}, {}, {}] }}\n\
+         density = {density}\nshear_modulus = 2e4\nlame_lambda = 1e4\n",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    )
+}
+
+fn run_until(sim: &mut Simulation, t: f64, mut each: impl FnMut(&Simulation)) {
+    while sim.time < t - 1e-9 {
+        if let Err(e) = sim.step() {
+            panic!("{e}");
+        }
+        each(sim);
+    }
+}
+
+/// Indices of the solid particles of `[[solid]]` entry `body`.
+fn body(sim: &Simulation, body: u32) -> Vec<usize> {
+    (0..sim.solids.len()).filter(|&i| sim.solids.body[i] == body).collect()
+}
+
+fn mean(sim_values: impl Iterator<Item = f32>) -> f64 {
+    let (s, n) = sim_values.fold((0.0f64, 0usize), |(s, n), v| (s + f64::from(v), n + 1));
+    s / n.max(1) as f64
+}
+
+/// The height at which the fluid's own pressure would vanish, from the
+/// fluid particles with x outside `[x_lo, x_hi]` more than 3 d below the
+/// geometric free surface there: mean of y + p / (rho g) (as in
+/// `tests/solid_fluid.rs`; the fluid's free surface sits about 0.45 d below
+/// it, an SPH offset that shrinks with d).
+fn hydrostatic_surface(sim: &Simulation, x_lo: f32, x_hi: f32, d: f32) -> f32 {
+    let f = &sim.fluid;
+    let mut top: HashMap<(i32, i32), f32> = HashMap::new();
+    let away = |i: usize| f.x[i] < x_lo || f.x[i] > x_hi;
+    for i in (0..f.len()).filter(|&i| away(i)) {
+        let e = top.entry(((f.x[i] / d) as i32, (f.z[i] / d) as i32)).or_insert(f32::MIN);
+        *e = e.max(f.y[i]);
+    }
+    let level = top.values().sum::<f32>() / top.len() as f32 + 0.5 * d;
+    let deep: Vec<usize> = (0..f.len()).filter(|&i| away(i) && f.y[i] < level - 3.0 * d).collect();
+    deep.iter().map(|&i| f.y[i] + f.pressure[i] / (1000.0 * 9.81)).sum::<f32>() / deep.len() as f32
+}
+
+/// Kinetic energy of the solid particles, J.
+fn solid_kinetic_energy(sim: &Simulation) -> f64 {
+    let s = &sim.solids;
+    (0..s.len())
+        .map(|i| 0.5 * f64::from(s.mass[i]) * f64::from(s.vx[i].powi(2) + s.vy[i].powi(2) + s.vz[i].powi(2)))
+        .sum()
+}
+
+/// What a floating-slab run measured.
+struct Floating {
+    /// Mean immersion below the hydrostatic surface over the second half, m.
+    immersion: f64,
+    /// Mean solid kinetic energy over the first and the last quarter, J.
+    energy_early: f64,
+    energy_late: f64,
+}
+
+/// A free dry slab 0.2 x 0.06 x 0.2 m of 600 kg/m^3 (mu 2e4 Pa) floating
+/// in a 0.4 x 0.3 x 0.4 m tank of water (1 Pa s, P Table 2's range, so the
+/// heave is damped), placed with 0.035 m of its 0.06 m under the surface,
+/// run for `t_end` at `max_dt`.
+fn floating_slab(max_dt: f32, t_end: f64) -> Floating {
+    let d = 0.01;
+    let slab = soft_box("slab", [0.1, 0.115, 0.1], [0.3, 0.175, 0.3], 600.0);
+    let mut sim = Simulation::new(common::scene_text(&pool(d, max_dt, [0.4, 0.3, 0.4], 0.15, 1.0, &slab)));
+    let y0 = sim.solids.y0.iter().copied().fold(f32::MAX, f32::min);
+    let bottom_layer: Vec<usize> = (0..sim.solids.len()).filter(|&i| sim.solids.y0[i] < y0 + 0.5 * d).collect();
+    let (mut depth, mut early, mut late) = (Vec::new(), Vec::new(), Vec::new());
+    run_until(&mut sim, t_end, |sim| {
+        let bottom = mean(bottom_layer.iter().map(|&i| sim.solids.y[i])) as f32 - 0.5 * d;
+        if sim.time > 0.5 * t_end {
+            depth.push(f64::from(hydrostatic_surface(sim, 0.07, 0.33, d) - bottom));
+        }
+        if sim.time < 0.25 * t_end {
+            early.push(solid_kinetic_energy(sim));
+        } else if sim.time > 0.75 * t_end {
+            late.push(solid_kinetic_energy(sim));
+        }
+    });
+    let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    Floating { immersion: avg(&depth), energy_early: avg(&early), energy_late: avg(&late) }
+}
+
+/// Floating (the issue's first criterion, CI size: 2 s): the slab floats
+/// with 0.6 of its height below the hydrostatic surface (Archimedes, rho_s
+/// / rho_w = 0.6) within 5 %, its kinetic energy decaying.
+#[test]
+fn free_soft_slab_floats_at_the_archimedes_depth() {
+    let f = floating_slab(0.002, 2.0);
+    let expected = 0.6 * 0.06;
+    println!(
+        "slab: immersion {:.2} mm vs Archimedes {:.2} mm ({:+.2} %); solid kinetic energy {:.3e} J (first 0.5 s) -> {:.3e} J (last 0.5 s)",
+        1e3 * f.immersion,
+        1e3 * expected,
+        100.0 * (f.immersion / expected - 1.0),
+        f.energy_early,
+        f.energy_late
+    );
+    assert!((f.immersion / expected - 1.0).abs() < 0.05);
+    assert!(f.energy_late < 0.5 * f.energy_early, "kinetic energy does not decay");
+}
+
+/// Compression (the issue's second criterion): a neutrally buoyant soft
+/// block (1000 kg/m^3, mu 2e4 Pa, lambda 1e4 Pa) held submerged by a few
+/// particles at its centre is squeezed by the hydrostatic pressure around
+/// it. Reference: linear elasticity, volumetric strain -rho g z_c / K with
+/// z_c the depth of the block's centre below the hydrostatic surface and
+/// K = lambda + 2 mu / 3 = 2.33e4 Pa; tolerance 20 % (the issue's). Two
+/// measures are held to it: the mean corotated tr(eps) of the particles
+/// below the block's outer layer, and the volume change from the
+/// particles' spread about their centre ((r^2 / r0^2)^(3/2) - 1). The mean
+/// tr(eps) over all particles is printed: the outer layer of a corotated
+/// SPH solid reads about a third less strain than the inside under a
+/// surface load (its one-sided, corrected neighbourhood; measured at
+/// d = 2 cm: -0.060 in the outer layer, -0.093 to -0.097 below it, -0.096
+/// expected), and at d = 2 cm the outer layer is a third of the particles,
+/// so that mean reads about -15 %. Here z_c = 0.23 m (tr(eps) -0.1: the
+/// law is linear). Settled for 0.8 s, measured over the next 0.2 s.
+#[test]
+fn submerged_soft_block_compresses_by_the_hydrostatic_pressure() {
+    let d = 0.02;
+    // Held at its centre (2 x 2 x 2 particles): a compressed block is
+    // denser than the water and would sink onto the floor.
+    let block = soft_box("block", [0.14, 0.1, 0.14], [0.46, 0.42, 0.46], 1000.0)
+        + "fixed = { box = { min = [0.28, 0.24, 0.28], max = [0.32, 0.28, 0.32] } }\n";
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.6, 0.5, 0.6], 0.46, 1.0, &block)));
+    let k = 1e4 + 2.0 * 2e4 / 3.0;
+    let s = &sim.solids;
+    let (lo, hi) = ([0.15f32, 0.11, 0.15], [0.45f32, 0.41, 0.45]);
+    let inside: Vec<usize> = (0..s.len())
+        .filter(|&i| {
+            (0..3).all(|c| {
+                [s.x0[i], s.y0[i], s.z0[i]][c] > lo[c] + 0.5 * d && [s.x0[i], s.y0[i], s.z0[i]][c] < hi[c] - 0.5 * d
+            })
+        })
+        .collect();
+    let spread = |sim: &Simulation| {
+        let s = &sim.solids;
+        let c = [mean(s.x.iter().copied()), mean(s.y.iter().copied()), mean(s.z.iter().copied())];
+        (0..s.len())
+            .map(|i| (0..3).map(|a| (f64::from([s.x[i], s.y[i], s.z[i]][a]) - c[a]).powi(2)).sum::<f64>())
+            .sum::<f64>()
+            / s.len() as f64
+    };
+    let r0 = spread(&sim);
+    let (mut all, mut inner, mut volume, mut expected) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    run_until(&mut sim, 1.0, |sim| {
+        if sim.time > 0.8 {
+            let surface = f64::from(hydrostatic_surface(sim, 0.1, 0.5, d));
+            let z_c = surface - mean(sim.solids.y.iter().copied());
+            expected.push(-1000.0 * 9.81 * z_c / k);
+            all.push(mean(sim.solids.strain_trace.iter().copied()));
+            inner.push(mean(inside.iter().map(|&i| sim.solids.strain_trace[i])));
+            volume.push((spread(sim) / r0).powf(1.5) - 1.0);
+        }
+    });
+    let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (e, a, i, v) = (avg(&expected), avg(&all), avg(&inner), avg(&volume));
+    let pct = |x: f64| 100.0 * (x / e - 1.0);
+    println!(
+        "submerged block: {} solid particles; expected -rho g z_c / K = {e:+.4}; tr(eps) below the outer layer {i:+.4} \
+         ({:+.1} %), volume change from the spread {v:+.4} ({:+.1} %), mean tr(eps) of all particles {a:+.4} ({:+.1} %)",
+        sim.solids.len(),
+        pct(i),
+        pct(v),
+        pct(a)
+    );
+    assert!((i / e - 1.0).abs() < 0.2 && (v / e - 1.0).abs() < 0.2);
+}
+
+/// Mass of every phase (outer + inner), kg, and its largest relative
+/// drift from the start over a run.
+struct MassWatch {
+    start: Vec<f64>,
+    worst: f64,
+}
+
+impl MassWatch {
+    fn new(sim: &Simulation) -> Self {
+        MassWatch { start: sim.phase_masses(), worst: 0.0 }
+    }
+
+    fn check(&mut self, sim: &Simulation) {
+        for (m, m0) in sim.phase_masses().iter().zip(&self.start) {
+            self.worst = self.worst.max(((m - m0) / m0).abs());
+        }
+    }
+}
+
+/// The pore pressure equilibrium of P-Eq. 9 per solid particle:
+/// (p_0 sum_k phi_sk - B tr(eps_s)) / p_0k - 1 over the particles of
+/// `parts`, as (mean, mean of the magnitude).
+fn pore_equilibrium(sim: &Simulation, parts: &[usize]) -> (f64, f64) {
+    let s = &sim.solids;
+    let r: Vec<f64> =
+        parts.iter().map(|&i| f64::from(5e4 * s.saturation[i] - 4.9e4 * s.strain_trace[i]) / 2.5e4 - 1.0).collect();
+    (r.iter().sum::<f64>() / r.len() as f64, r.iter().map(|x| x.abs()).sum::<f64>() / r.len() as f64)
+}
+
+/// Soak (the issue's third criterion, CI size: d = 2 cm, 4 s): a free
+/// sponge of P Table 2 (0.2 x 0.16 x 0.2 m, 600 kg/m^3, mu 2e4 Pa) with
+/// `gains_mass`, dropped into a pool, and one standing in it anchored at
+/// its base. References:
+/// absorption stops where the pore pressure reaches the outer one, p_0
+/// sum phi - B tr(eps) = p_0k (P-Eq. 9); within 5 % per particle (mean of
+/// the magnitude over the solid). A sponge under water is compressed by
+/// the water's pressure (and a wet one by its weight), which lowers the
+/// equilibrium saturation below p_0k / p_0 = 0.5 by B tr(eps) / p_0; the
+/// deviation from 0.5 is printed. Each phase's mass (outer + inner) is
+/// conserved to 1e-6. At d = 2 cm the saturation of single particles
+/// scatters by about 7 % around the equilibrium, in layers (0.46 and 0.50
+/// in alternate rows: the inner liquid is carried by about one fluid
+/// particle per two solid ones); at d = 1 cm by 2 %. So this test holds
+/// the mean residual to the issue's 5 % and the per-particle one to 10 %;
+/// the d = 1 cm run (`soak_at_full_size`, ignored) holds the per-particle
+/// residual to 5 %.
+#[test]
+fn free_and_anchored_sponges_soak_to_the_pore_pressure_equilibrium() {
+    let d = 0.02;
+    for (name, solid) in [
+        (
+            "free, gains mass",
+            soft_box("sponge", [0.15, 0.26, 0.1], [0.35, 0.42, 0.3], 600.0) + &porous("water", 7.5e-4, true),
+        ),
+        (
+            "anchored at its base",
+            soft_box("sponge", [0.15, 0.0, 0.1], [0.35, 0.16, 0.3], 600.0)
+                + "fixed = { box = { min = [0.14, -0.01, 0.09], max = [0.36, 0.02, 0.31] } }\n"
+                + &porous("water", 7.5e-4, false),
+        ),
+    ] {
+        let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.5, 0.5, 0.4], 0.2, 1.0, &solid)));
+        let mut mass = MassWatch::new(&sim);
+        run_until(&mut sim, 4.0, |sim| mass.check(sim));
+        let all: Vec<usize> = (0..sim.solids.len()).collect();
+        let (res, res_abs) = pore_equilibrium(&sim, &all);
+        let sat = mean(sim.solids.saturation.iter().copied());
+        println!(
+            "sponge {name}: saturation {sat:.4} ({:+.1} % of p0k/p0), mean tr(eps) {:+.4}; P-Eq. 9 residual {:+.2} % (per particle {:.2} %); mass drift {:.1e}",
+            100.0 * (sat / 0.5 - 1.0),
+            mean(sim.solids.strain_trace.iter().copied()),
+            100.0 * res,
+            100.0 * res_abs,
+            mass.worst
+        );
+        assert!(res.abs() < 0.05 && res_abs < 0.1, "{name}: P-Eq. 9 residual {res} (per particle {res_abs})");
+        assert!(mass.worst < 1e-6, "{name}: mass drift {}", mass.worst);
+    }
+}
+
+/// Squeeze (the issue's fourth criterion, CI size): a sponge standing in a
+/// pool, its base clamped, soaks for 1 s, is compressed by a kinematic
+/// plate (3 cm of its 12 cm in 0.5 s), held, and released. References:
+/// while held, the squeezed sponge gives its liquid back until P-Eq. 9
+/// holds at the new strain (saturation (p_0k + B tr(eps)) / p_0, less than
+/// the relaxed 0.5): the mean residual within 10 % (the issue's) at the
+/// end of a 3.5 s hold (the per-particle one is printed; at d = 1 cm it is
+/// held to 10 % by `squeeze_at_full_size`, ignored); released, it recovers
+/// at least 90 % of its height within 1 s; mass conserved to 1e-6.
+#[test]
+fn squeezed_sponge_gives_its_liquid_back_and_recovers() {
+    let d = 0.02;
+    let (hold_end, release_end) = (5.0, 5.5);
+    let solids = soft_box("sponge", [0.14, 0.0, 0.1], [0.26, 0.12, 0.22], 600.0)
+        + "fixed = { box = { min = [0.13, -0.01, 0.09], max = [0.27, 0.02, 0.23] } }\n"
+        + &porous("water", 7.5e-4, false)
+        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.12, 0.06], max = [0.3, 0.16, 0.26] }\n\
+           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
+           fixed = { box = { min = [0.09, 0.11, 0.05], max = [0.31, 0.17, 0.27] } }\n"
+        + &format!(
+            "motion = [{{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }}, \
+             {{ from = {hold_end}, until = {release_end}, velocity = [0.0, 0.06, 0.0] }}]\n"
+        );
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.3, 0.32], 0.1, 1.0, &solids)));
+    let sponge = body(&sim, 0);
+    let top = |sim: &Simulation| sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MIN, f32::max);
+    let bottom0 = sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MAX, f32::min);
+    let height0 = top(&sim) - bottom0;
+    let mut mass = MassWatch::new(&sim);
+    run_until(&mut sim, 1.0, |sim| mass.check(sim));
+    let soaked = mean(sponge.iter().map(|&i| sim.solids.saturation[i]));
+    run_until(&mut sim, hold_end, |sim| mass.check(sim));
+    let squeezed = top(&sim) - bottom0;
+    let (res, res_abs) = pore_equilibrium(&sim, &sponge);
+    let held = mean(sponge.iter().map(|&i| sim.solids.saturation[i]));
+    let strain = mean(sponge.iter().map(|&i| sim.solids.strain_trace[i]));
+    run_until(&mut sim, release_end + 1.0, |sim| mass.check(sim));
+    let recovered = top(&sim) - bottom0;
+    println!(
+        "squeeze: saturation {soaked:.4} soaked, {held:.4} held at tr(eps) {strain:+.4} (P-Eq. 9: {:.4}); residual {:+.2} % \
+         (per particle {:.2} %); height {:.1} mm -> {:.1} mm squeezed -> {:.1} mm 1 s after release ({:.1} %); mass drift {:.1e}",
+        (2.5e4 + 4.9e4 * strain) / 5e4,
+        100.0 * res,
+        100.0 * res_abs,
+        1e3 * height0,
+        1e3 * squeezed,
+        1e3 * recovered,
+        100.0 * recovered / height0,
+        mass.worst
+    );
+    assert!(held < soaked, "no liquid came out");
+    assert!(res.abs() < 0.1, "P-Eq. 9 residual {res} (per particle {res_abs})");
+    assert!(recovered > 0.9 * height0, "height {recovered} of {height0}");
+    assert!(mass.worst < 1e-6, "mass drift {}", mass.worst);
+}
+
+/// Swelling with gravity and water around it (the issue's fifth
+/// criterion): a sponge of 1200 kg/m^3 (so that it rests, wet or dry, on
+/// the floor under water) soaks with eta = 0.05 and with eta = 0.
+/// Reference: the pore stress -eta p^pore I of P-Eq. 5 with p^pore =
+/// p_0 sum phi - B tr(eps) (P-Eq. 9) gives K tr(eps) = eta (p_0 sum phi -
+/// B tr(eps)) on top of whatever the water's pressure and the weight do,
+/// so the swelling is the difference of the two runs, tr(eps) = eta p_0
+/// sum phi / (K + eta B) (the issue's formula, with the sponge's own mean
+/// saturation); within 20 % (the issue's). The paper's eta = 7.5e-4 gives
+/// about 1e-3, below what the water's pressure does to the strain.
+#[test]
+fn swelling_follows_the_pore_stress_under_water() {
+    let d = 0.02;
+    let run = |eta: f32| {
+        let solid = soft_box("sponge", [0.1, 0.0, 0.1], [0.22, 0.1, 0.22], 1200.0) + &porous("water", eta, false);
+        let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.32, 0.3, 0.32], 0.16, 1.0, &solid)));
+        run_until(&mut sim, 3.0, |_| {});
+        (mean(sim.solids.strain_trace.iter().copied()), mean(sim.solids.saturation.iter().copied()))
+    };
+    let (wet, sat) = run(0.05);
+    let (dry, sat0) = run(0.0);
+    let k = 1e4 + 2.0 * 2e4 / 3.0;
+    let expected = 0.05 * 5e4 * sat / (k + 0.05 * 4.9e4);
+    let swelling = wet - dry;
+    println!(
+        "swelling: tr(eps) {wet:+.4} (eta 0.05, saturation {sat:.3}) vs {dry:+.4} (eta 0, saturation {sat0:.3}): {swelling:+.4} \
+         vs eta p0 sum phi / (K + eta B) = {expected:+.4} ({:+.1} %)",
+        100.0 * (swelling / expected - 1.0)
+    );
+    assert!((swelling / expected - 1.0).abs() < 0.2);
+}
+
+/// Contact (the issue's seventh criterion, CI size: d = 2 cm, 2 s): a soft
+/// block (1500 kg/m^3) resting on the floor under water with a second one
+/// stacked on it. They rest on the walls and on each other through the
+/// pressure solve (solid rows with wall and other-body pairs). Reference:
+/// rest; neither sinks into the floor or into the other by more than 0.1 d
+/// (measured between particle layers: the lower block's bottom layer and
+/// the floor's inner layer, the upper's bottom layer and the lower's top
+/// layer, each one spacing apart at the start; the blocks' own elastic
+/// compression under the load moves neither gap).
+#[test]
+fn resting_and_stacked_blocks_stay_at_rest() {
+    let d = 0.02;
+    let solids = soft_box("lower", [0.1, 0.0, 0.06], [0.22, 0.08, 0.18], 1500.0)
+        + &soft_box("upper", [0.1, 0.08, 0.06], [0.22, 0.16, 0.18], 1500.0);
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.32, 0.3, 0.24], 0.22, 1.0, &solids)));
+    let (lower, upper) = (body(&sim, 0), body(&sim, 1));
+    let layer = |sim: &Simulation, parts: &[usize], y0: f32| {
+        mean(parts.iter().filter(|&&i| (sim.solids.y0[i] - y0).abs() < 0.25 * d).map(|&i| sim.solids.y[i]))
+    };
+    let floor_layer = -0.5 * d; // the wall's inner layer
+    let (lo_bottom, lo_top, up_bottom) = (0.5 * d, 0.08 - 0.5 * d, 0.08 + 0.5 * d);
+    let mut worst = (0.0f64, 0.0f64);
+    let mut speed = 0.0f32;
+    run_until(&mut sim, 2.0, |sim| {
+        if sim.time > 0.5 {
+            let floor_gap = layer(sim, &lower, lo_bottom) - f64::from(floor_layer);
+            let stack_gap = layer(sim, &upper, up_bottom) - layer(sim, &lower, lo_top);
+            worst.0 = worst.0.max(f64::from(d) - floor_gap);
+            worst.1 = worst.1.max(f64::from(d) - stack_gap);
+            speed = speed.max(sim.max_speed());
+        }
+    });
+    println!(
+        "resting blocks: largest sinking into the floor {:.3} d, into each other {:.3} d; largest speed after 0.5 s {speed:.4} m/s",
+        worst.0 / f64::from(d),
+        worst.1 / f64::from(d)
+    );
+    assert!(worst.0 < 0.1 * f64::from(d) && worst.1 < 0.1 * f64::from(d));
+}
+
+// The issue's runs at full size: d = 1 cm (the paper's scale, P §7), the
+// issue's durations. `cargo test --release --test deformable -- --ignored
+// --nocapture`; minutes each on 2 cores.
+
+/// Floating at full size: 5 s at max_dt 2 ms, and the same at 1 and
+/// 0.5 ms; each within 5 % of Archimedes below the hydrostatic surface,
+/// all three within 5 % of each other, the kinetic energy decaying.
+#[test]
+#[ignore = "long: 5 s at d = 1 cm at three time steps (about 45 min on 2 cores)"]
+fn floating_at_full_size_and_three_time_steps() {
+    let expected = 0.6 * 0.06;
+    let runs: Vec<(f32, Floating)> = [0.002f32, 0.001, 0.0005].iter().map(|&dt| (dt, floating_slab(dt, 5.0))).collect();
+    for (dt, f) in &runs {
+        println!(
+            "max_dt {} ms: immersion {:.2} mm ({:+.2} % of Archimedes), kinetic energy {:.3e} J -> {:.3e} J",
+            dt * 1e3,
+            1e3 * f.immersion,
+            100.0 * (f.immersion / expected - 1.0),
+            f.energy_early,
+            f.energy_late
+        );
+        assert!((f.immersion / expected - 1.0).abs() < 0.05);
+        assert!(f.energy_late < 0.5 * f.energy_early);
+    }
+    let (lo, hi) = runs.iter().fold((f64::MAX, f64::MIN), |(a, b), (_, f)| (a.min(f.immersion), b.max(f.immersion)));
+    println!("immersions within {:.2} % of each other", 100.0 * (hi / lo - 1.0));
+    assert!(hi / lo - 1.0 < 0.05);
+}
+
+/// Soak at full size: the free sponge with `gains_mass` dropped into a
+/// pool, and one anchored at its base (0.12 x 0.09 x 0.12 m, the issue's),
+/// each 10 s at max_dt 2 ms: P-Eq. 9's equilibrium per particle within
+/// 5 % (the d = 2 cm test's reference), mass to 1e-6, no step error.
+#[test]
+#[ignore = "long: 10 s at d = 1 cm, two sponges (about 30 min on 2 cores)"]
+fn soak_at_full_size() {
+    let d = 0.01;
+    for (name, solid) in [
+        (
+            "free, gains mass",
+            soft_box("sponge", [0.14, 0.25, 0.09], [0.26, 0.34, 0.21], 600.0) + &porous("water", 7.5e-4, true),
+        ),
+        (
+            "anchored at its base",
+            soft_box("sponge", [0.14, 0.0, 0.09], [0.26, 0.09, 0.21], 600.0)
+                + "fixed = { box = { min = [0.13, -0.01, 0.08], max = [0.27, 0.01, 0.22] } }\n"
+                + &porous("water", 7.5e-4, false),
+        ),
+    ] {
+        let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.45, 0.3], 0.15, 1.0, &solid)));
+        let mut mass = MassWatch::new(&sim);
+        run_until(&mut sim, 10.0, |sim| mass.check(sim));
+        let all: Vec<usize> = (0..sim.solids.len()).collect();
+        let (res, res_abs) = pore_equilibrium(&sim, &all);
+        let sat = mean(sim.solids.saturation.iter().copied());
+        println!(
+            "sponge {name}, 10 s: saturation {sat:.4} ({:+.1} % of p0k/p0), mean tr(eps) {:+.4}; P-Eq. 9 residual {:+.2} % \
+             (per particle {:.2} %); mass drift {:.1e}",
+            100.0 * (sat / 0.5 - 1.0),
+            mean(sim.solids.strain_trace.iter().copied()),
+            100.0 * res,
+            100.0 * res_abs,
+            mass.worst
+        );
+        assert!(res_abs < 0.05, "{name}: P-Eq. 9 residual per particle {res_abs}");
+        assert!(mass.worst < 1e-6, "{name}: mass drift {}", mass.worst);
+    }
+}
+
+/// Squeeze at full size: a 0.12 m sponge, base clamped, soaked 1 s,
+/// squeezed by 3 cm in 0.5 s, held 4.5 s, released: the per-particle
+/// P-Eq. 9 residual within 10 % at the end of the hold; at least 90 % of
+/// the height back within 1 s of the release.
+#[test]
+#[ignore = "long: 7.5 s at d = 1 cm (about 15 min on 2 cores)"]
+fn squeeze_at_full_size() {
+    let d = 0.01;
+    let (hold_end, release_end) = (6.0, 6.5);
+    let solids = soft_box("sponge", [0.14, 0.0, 0.09], [0.26, 0.12, 0.21], 600.0)
+        + "fixed = { box = { min = [0.13, -0.01, 0.08], max = [0.27, 0.01, 0.22] } }\n"
+        + &porous("water", 7.5e-4, false)
+        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.13, 0.05], max = [0.3, 0.15, 0.25] }\n\
+           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
+           fixed = { box = { min = [0.09, 0.12, 0.04], max = [0.31, 0.16, 0.26] } }\n"
+        + &format!(
+            "motion = [{{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }}, \
+             {{ from = {hold_end}, until = {release_end}, velocity = [0.0, 0.06, 0.0] }}]\n"
+        );
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.4, 0.3], 0.1, 1.0, &solids)));
+    let sponge = body(&sim, 0);
+    let top = |sim: &Simulation| sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MIN, f32::max);
+    let bottom0 = sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MAX, f32::min);
+    let height0 = top(&sim) - bottom0;
+    let mut mass = MassWatch::new(&sim);
+    run_until(&mut sim, hold_end, |sim| mass.check(sim));
+    let squeezed = top(&sim) - bottom0;
+    let (res, res_abs) = pore_equilibrium(&sim, &sponge);
+    let held = mean(sponge.iter().map(|&i| sim.solids.saturation[i]));
+    let strain = mean(sponge.iter().map(|&i| sim.solids.strain_trace[i]));
+    run_until(&mut sim, release_end + 1.0, |sim| mass.check(sim));
+    let recovered = top(&sim) - bottom0;
+    println!(
+        "squeeze at full size: saturation {held:.4} held at tr(eps) {strain:+.4} (P-Eq. 9: {:.4}); residual {:+.2} % \
+         (per particle {:.2} %); height {:.1} -> {:.1} -> {:.1} mm ({:.1} %); mass drift {:.1e}",
+        (2.5e4 + 4.9e4 * strain) / 5e4,
+        100.0 * res,
+        100.0 * res_abs,
+        1e3 * height0,
+        1e3 * squeezed,
+        1e3 * recovered,
+        100.0 * recovered / height0,
+        mass.worst
+    );
+    assert!(res_abs < 0.1);
+    assert!(recovered > 0.9 * height0);
+    assert!(mass.worst < 1e-6);
+}
+
+/// Contact at full size: a block resting on the floor with a second one
+/// stacked on it, 5 s at d = 1 cm: neither sinks by more than 0.1 d.
+#[test]
+#[ignore = "long: 5 s at d = 1 cm (about 10 min on 2 cores)"]
+fn contact_at_full_size() {
+    let d = 0.01;
+    let solids = soft_box("lower", [0.1, 0.0, 0.05], [0.2, 0.05, 0.15], 1500.0)
+        + &soft_box("upper", [0.1, 0.05, 0.05], [0.2, 0.1, 0.15], 1500.0);
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.3, 0.3, 0.2], 0.2, 0.01, &solids)));
+    let (lower, upper) = (body(&sim, 0), body(&sim, 1));
+    let layer = |sim: &Simulation, parts: &[usize], y0: f32| {
+        mean(parts.iter().filter(|&&i| (sim.solids.y0[i] - y0).abs() < 0.25 * d).map(|&i| sim.solids.y[i]))
+    };
+    let mut worst = (0.0f64, 0.0f64);
+    run_until(&mut sim, 5.0, |sim| {
+        let floor_gap = layer(sim, &lower, 0.5 * d) + 0.5 * f64::from(d);
+        let stack_gap = layer(sim, &upper, 0.05 + 0.5 * d) - layer(sim, &lower, 0.05 - 0.5 * d);
+        worst.0 = worst.0.max(f64::from(d) - floor_gap);
+        worst.1 = worst.1.max(f64::from(d) - stack_gap);
+    });
+    println!(
+        "contact at full size: largest sinking into the floor {:.3} d, into each other {:.3} d",
+        worst.0 / f64::from(d),
+        worst.1 / f64::from(d)
+    );
+    assert!(worst.0 < 0.1 * f64::from(d) && worst.1 < 0.1 * f64::from(d));
+}
+
+/// Added mass (the issue's eighth criterion): a clamped elastic plate
+/// (L = 0.4 m, thickness H = 0.04 m, width b = 0.16 m, 1000 kg/m^3,
+/// mu 4e6 Pa, lambda 0) started in its first bending mode oscillates in a
+/// closed tank full of water (no gravity) slower than alone (no fluid),
+/// both at d = 1 cm, max_dt 1 ms. Reference: thin-plate added mass. The
+/// water moving with a strip of width b adds m_a = C pi rho_w b^2 / 4 per
+/// length (C = 1 for a flat strip in unbounded fluid), so the frequency
+/// falls by (1 + C pi rho_w b / (4 rho_s H))^(-1/2). C for this plate lies
+/// between 0.7 (a cantilever of aspect ratio L / b = 2.5 carries less
+/// water than an infinite strip: three-dimensional flow around its tip and
+/// sides) and 1.14 (a rectangular section of b / H = 4 moving across its
+/// width carries more than a flat strip): the ratio lies in [0.47, 0.56].
+#[test]
+#[ignore = "long: a plate in 80k water particles at d = 1 cm (about 15 min on 2 cores)"]
+fn plate_oscillates_slower_in_water_by_its_added_mass() {
+    let (d, length, thick, width, mu) = (0.01f32, 0.4f32, 0.04f32, 0.16f32, 4.0e6f32);
+    let plate = format!(
+        "[[solid]]\nname = \"plate\"\nbox = {{ min = [-0.06, 0.0, 0.0], max = [{length}, {thick}, {width}] }}\n\
+         density = 1000.0\nshear_modulus = {mu}\nlame_lambda = 0.0\n\
+         fixed = {{ box = {{ min = [-0.07, -0.01, -0.01], max = [0.0, 0.1, 0.2] }} }}\n"
+    );
+    let header = format!(
+        "[simulation]\nparticle_spacing = {d}\nend_time = 100.0\nmax_dt = 0.001\ngravity = [0.0, 0.0, 0.0]\n\
+         elastic_max_iterations = 3000\n[[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.01\n"
+    );
+    let (lo, hi) = ([-0.06, -0.16, -0.12], [length + 0.12, thick + 0.16, width + 0.12]);
+    let tank = format!(
+        "[[wall]]\nbox = {{ min = [{}, {}, {}], max = [{}, {}, {}] }}\ncontainer = true\n\
+         [[fluid]]\nbox = {{ min = [{}, {}, {}], max = [{}, {}, {}] }}\nfractions = {{ water = 1.0 }}\n",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    );
+    // Mode shape of the clamped-free beam, k L = 1.875.
+    let kl = 1.875f32;
+    let k = kl / length;
+    let shape = |x: f32| {
+        let a = (kl.cos() + kl.cosh()) / (kl.sin() + kl.sinh());
+        let kx = k * x;
+        (kx.cos() - kx.cosh()) - a * (kx.sin() - kx.sinh())
+    };
+    let period = |scene: String| {
+        let mut sim = Simulation::new(common::scene_text(&scene));
+        let tip: Vec<usize> = (0..sim.solids.len()).filter(|&i| sim.solids.x0[i] > length - d).collect();
+        for i in 0..sim.solids.len() {
+            if sim.solids.x0[i] > 0.0 {
+                sim.solids.vy[i] = 0.05 * shape(sim.solids.x0[i]) / shape(length);
+            }
+        }
+        let tip_y = |sim: &Simulation| mean(tip.iter().map(|&i| sim.solids.y[i]));
+        let y0 = tip_y(&sim);
+        let (mut crossings, mut prev) = (Vec::new(), 0.0f64);
+        while crossings.len() < 5 && sim.time < 5.0 {
+            let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
+            let disp = tip_y(&sim) - y0;
+            if prev > 0.0 && disp <= 0.0 || prev < 0.0 && disp >= 0.0 {
+                crossings.push(sim.time - f64::from(st.dt) * disp / (disp - prev));
+            }
+            prev = disp;
+        }
+        assert!(crossings.len() >= 3, "crossings {crossings:?}");
+        let halves: Vec<f64> = crossings.windows(2).map(|w| w[1] - w[0]).collect();
+        2.0 * halves.iter().sum::<f64>() / halves.len() as f64
+    };
+    let air = period(format!("{header}{plate}"));
+    let water = period(format!("{header}{tank}{plate}"));
+    let ratio = air / water;
+    let formula = |c: f32| (1.0 + c * std::f32::consts::PI * 1000.0 * width / (4.0 * 1000.0 * thick)).powf(-0.5);
+    println!(
+        "plate: period {air:.4} s alone, {water:.4} s in water: frequency ratio {ratio:.3} (thin-plate added mass: {:.3} for C = 1, \
+         [{:.3}, {:.3}] for C in [0.7, 1.14])",
+        formula(1.0),
+        formula(1.14),
+        formula(0.7)
+    );
+    assert!(ratio > f64::from(formula(1.14)) && ratio < f64::from(formula(0.7)));
+}
