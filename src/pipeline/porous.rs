@@ -384,7 +384,7 @@ pub(super) fn accelerations(
 /// what would carry the new velocity u* + dt ap into the wall: its
 /// component along the wall normal n (the direction of
 /// sum_b W_fb (x_f - x_b) over the wall neighbours b), where negative
-/// (frictionless, inelastic, like the solids' wall contact).
+/// (frictionless, inelastic).
 pub(super) fn wall_guard(
     p: &Params,
     fluid: &FluidStore,
