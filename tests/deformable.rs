@@ -431,7 +431,7 @@ fn resting_and_stacked_blocks_stay_at_rest() {
 /// 0.5 ms; each within 5 % of Archimedes below the hydrostatic surface,
 /// all three within 5 % of each other, the kinetic energy decaying.
 #[test]
-#[ignore = "long: 5 s at d = 1 cm at three time steps (about 45 min on 2 cores)"]
+#[ignore = "long: 5 s at d = 1 cm at three time steps (about 20 min on 2 cores)"]
 fn floating_at_full_size_and_three_time_steps() {
     let expected = 0.6 * 0.06;
     let runs: Vec<(f32, Floating)> = [0.002f32, 0.001, 0.0005].iter().map(|&dt| (dt, floating_slab(dt, 5.0))).collect();
@@ -457,7 +457,7 @@ fn floating_at_full_size_and_three_time_steps() {
 /// each 10 s at max_dt 2 ms: P-Eq. 9's equilibrium per particle within
 /// 5 % (the d = 2 cm test's reference), mass to 1e-6, no step error.
 #[test]
-#[ignore = "long: 10 s at d = 1 cm, two sponges (about 30 min on 2 cores)"]
+#[ignore = "long: 10 s at d = 1 cm, two sponges (about 17 min on 2 cores)"]
 fn soak_at_full_size() {
     let d = 0.01;
     for (name, solid) in [
@@ -497,7 +497,7 @@ fn soak_at_full_size() {
 /// P-Eq. 9 residual within 10 % at the end of the hold; at least 90 % of
 /// the height back within 1 s of the release.
 #[test]
-#[ignore = "long: 7.5 s at d = 1 cm (about 15 min on 2 cores)"]
+#[ignore = "long: 7.5 s at d = 1 cm (about 5 min on 2 cores)"]
 fn squeeze_at_full_size() {
     let d = 0.01;
     let (hold_end, release_end) = (6.0, 6.5);
@@ -544,7 +544,7 @@ fn squeeze_at_full_size() {
 /// Contact at full size: a block resting on the floor with a second one
 /// stacked on it, 5 s at d = 1 cm: neither sinks by more than 0.1 d.
 #[test]
-#[ignore = "long: 5 s at d = 1 cm (about 10 min on 2 cores)"]
+#[ignore = "long: 5 s at d = 1 cm (about 3 min on 2 cores)"]
 fn contact_at_full_size() {
     let d = 0.01;
     let solids = soft_box("lower", [0.1, 0.0, 0.05], [0.2, 0.05, 0.15], 1500.0)
@@ -581,8 +581,18 @@ fn contact_at_full_size() {
 /// water than an infinite strip: three-dimensional flow around its tip and
 /// sides) and 1.14 (a rectangular section of b / H = 4 moving across its
 /// width carries more than a flat strip): the ratio lies in [0.47, 0.56].
+///
+/// FAILS today (2026-12-02, not yet resolved): periods 0.303 s alone and
+/// 0.411 s in water, ratio 0.737 (an added mass of 0.27 of the strip
+/// value). With the bodies' response solved to the elastic tolerance in
+/// every Jacobi sweep instead of `RESPONSE_ITERATIONS_PER_SWEEP` = 2 CG
+/// iterations, 0.791 s and ratio 0.383 (1.85 of the strip value): the
+/// added mass depends on how far the in-sweep response converges (this
+/// stiff plate's CG needs tens of iterations, a soft sponge's a few), and
+/// the tank's walls one plate width away raise C above the unbounded
+/// value, so neither number is yet a clean comparison.
 #[test]
-#[ignore = "long: a plate in 80k water particles at d = 1 cm (about 15 min on 2 cores)"]
+#[ignore = "long: a plate in 80k water particles at d = 1 cm (about 3 min on 2 cores); fails today, see its doc"]
 fn plate_oscillates_slower_in_water_by_its_added_mass() {
     let (d, length, thick, width, mu) = (0.01f32, 0.4f32, 0.04f32, 0.16f32, 4.0e6f32);
     let plate = format!(
