@@ -221,8 +221,10 @@ fn one_fluid_layer_under_a_block_converges_at_the_default_omega() {
 /// sigma, so it was compressed by a neighbour the fluid cannot push away,
 /// and its pressure grew as 1/diag where one fluid particle barely reached
 /// it: 5e9 Pa and a blow-up at step 1 here (Example 5's layers had to be set
-/// 2 cm apart). A solid row now counts only its own body
-/// (`iisph::kernel_sums_within`). References: the solver's convergence
+/// 2 cm apart). Now a solid row's own-body share comes from the rest
+/// lattice and another body counts like a wall; these two blocks are both
+/// held, so their particles are not pressure pairs at all (nothing could
+/// move them apart; `porosph_kernels::solid_rows`). References: the solver's convergence
 /// criterion (mean density error <= 1e-3) at every step; mass conservation
 /// of the water (outer + inner, <= 1e-6, as tests/porous.rs); and the
 /// largest solid-row pressure against the same tank with the lower block

@@ -73,7 +73,7 @@ pub struct Params {
     /// Largest number of elastic conjugate-gradient iterations.
     pub elastic_max_iterations: u32,
     /// Elastic body of each solid entry: entries with the same `body` name
-    /// share an index (rest neighbours and rigid motion in the solve).
+    /// share an index (rest neighbours, and no pressure pairs between them).
     pub solid_group: Vec<u32>,
     /// Rest mass m_s0 = rho_s d^3 of a particle of each solid entry, kg.
     pub solid_rest_mass: Vec<f32>,

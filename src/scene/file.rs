@@ -296,8 +296,8 @@ pub(super) struct SolidFile {
     /// The name of the body this solid belongs to
     ///
     /// Entries with the same body form one elastic body (rest neighbours
-    /// across them, one rigid motion in the pressure solve) with regions of
-    /// different material; default: the solid's own name.
+    /// across them, one elastic response in the pressure solve) with
+    /// regions of different material; default: the solid's own name.
     #[schemars(length(min = 1))]
     pub body: Option<String>,
     /// The porous parameters

@@ -346,8 +346,9 @@ pub struct Solid {
     /// particles over time intervals [from, until) s.
     pub motion: Vec<Motion>,
     /// `body = "NAME"`: entries with the same body name form one elastic
-    /// body (rest neighbours across them, one rigid motion in the pressure
-    /// solve) with regions of different material (default: its own name).
+    /// body (rest neighbours across them, one elastic response in the
+    /// pressure solve) with regions of different material (default: its
+    /// own name).
     pub body: String,
     /// `[solid.porous]`: the porous parameters of this solid (region).
     pub porous: Option<Porous>,
