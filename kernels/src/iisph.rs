@@ -448,6 +448,20 @@ pub fn pressure_acceleration(
         });
 }
 
+/// acc += sum over the pairs `r` of `blk` of (a_i - a_j) . g_ij, lane by
+/// lane: the (A p) term of a Jacobi row (P-Eq. 28) over one pair list, with
+/// `ai` the row's own a^p (zero for a wall) and `a` the neighbours'.
+#[inline(always)]
+pub(crate) fn add_relative_accel(acc: &mut F, blk: &PairBlock, r: std::ops::Range<usize>, ai: [F; 3], a: Vel) {
+    let mut k = r.start;
+    while k < r.end {
+        *acc += (ai[0] - gather(a.x, &blk.j, k)) * load(&blk.gx, k)
+            + (ai[1] - gather(a.y, &blk.j, k)) * load(&blk.gy, k)
+            + (ai[2] - gather(a.z, &blk.j, k)) * load(&blk.gz, k);
+        k += LANES;
+    }
+}
+
 /// Adds sum_j (p_i + p_j) g_ij over the pairs of query `q` to `acc`.
 #[inline(always)]
 fn pressure_sum(blk: &PairBlock, q: usize, p: &[f32], pi: F, acc: [&mut F; 3]) {
@@ -561,14 +575,7 @@ pub fn fluid_jacobi(
                 }
                 let (axi, ayi, azi) = (F::splat(ap.x[i]), F::splat(ap.y[i]), F::splat(ap.z[i]));
                 let mut acc = F::ZERO;
-                let r = bf.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    acc += (axi - gather(ap.x, &bf.j, k)) * load(&bf.gx, k)
-                        + (ayi - gather(ap.y, &bf.j, k)) * load(&bf.gy, k)
-                        + (azi - gather(ap.z, &bf.j, k)) * load(&bf.gz, k);
-                    k += LANES;
-                }
+                add_relative_accel(&mut acc, bf, bf.range(q), [axi, ayi, azi], ap);
                 let r = bb.range(q);
                 let mut k = r.start;
                 while k < r.end {
@@ -576,14 +583,7 @@ pub fn fluid_jacobi(
                     k += LANES;
                 }
                 if let (Some(bs), Some(a)) = (bs, a_s) {
-                    let r = bs.range(q);
-                    let mut k = r.start;
-                    while k < r.end {
-                        acc += (axi - gather(a.x, &bs.j, k)) * load(&bs.gx, k)
-                            + (ayi - gather(a.y, &bs.j, k)) * load(&bs.gy, k)
-                            + (azi - gather(a.z, &bs.j, k)) * load(&bs.gz, k);
-                        k += LANES;
-                    }
+                    add_relative_accel(&mut acc, bs, bs.range(q), [axi, ayi, azi], a);
                 }
                 let res = rows.source[i] - dt2 * sum(acc);
                 *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
@@ -608,26 +608,13 @@ pub fn wall_jacobi(bf: &PairLists, ap: Vel, solids: Option<(&PairLists, Vel)>, r
                     *p = 0.0;
                     continue;
                 }
-                let r = blk.range(q);
+                // A wall's own a^p is 0: (0 - a_j) . g, negated exactly.
                 let mut acc = F::ZERO;
-                let mut k = r.start;
-                while k < r.end {
-                    acc += gather(ap.x, &blk.j, k) * load(&blk.gx, k)
-                        + gather(ap.y, &blk.j, k) * load(&blk.gy, k)
-                        + gather(ap.z, &blk.j, k) * load(&blk.gz, k);
-                    k += LANES;
-                }
+                add_relative_accel(&mut acc, blk, blk.range(q), [F::ZERO; 3], ap);
                 if let (Some(bs), Some(a)) = (bs, a_s) {
-                    let r = bs.range(q);
-                    let mut k = r.start;
-                    while k < r.end {
-                        acc += gather(a.x, &bs.j, k) * load(&bs.gx, k)
-                            + gather(a.y, &bs.j, k) * load(&bs.gy, k)
-                            + gather(a.z, &bs.j, k) * load(&bs.gz, k);
-                        k += LANES;
-                    }
+                    add_relative_accel(&mut acc, bs, bs.range(q), [F::ZERO; 3], a);
                 }
-                let res = rows.source[i] + dt2 * sum(acc);
+                let res = rows.source[i] - dt2 * sum(acc);
                 *p = (*p + jac.omega * res / rows.diag[i]).max(0.0);
             }
         },

@@ -29,7 +29,7 @@
 //!   and SS, and (Ap)_s = dt^2 sum_j g_sj.(a_s - a_j) (walls: a_b = 0).
 
 use crate::blocks::BLOCK;
-use crate::iisph::{scale_pairs, weighted_sum, Jacobi, Rows, Vel, VelMut};
+use crate::iisph::{add_relative_accel, scale_pairs, weighted_sum, Jacobi, Rows, Vel, VelMut};
 use crate::lanes::{gather, load, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
 use rayon::prelude::*;
@@ -362,14 +362,7 @@ pub fn solid_jacobi(nb: SolidNeighbours, a_s: Vel, a_f: Vel, rows: Rows, jac: Ja
                 let ai = [a_s.x[i], a_s.y[i], a_s.z[i]];
                 let (axi, ayi, azi) = (F::splat(ai[0]), F::splat(ai[1]), F::splat(ai[2]));
                 let mut acc = F::ZERO;
-                let r = bf.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    acc += (axi - gather(a_f.x, &bf.j, k)) * load(&bf.gx, k)
-                        + (ayi - gather(a_f.y, &bf.j, k)) * load(&bf.gy, k)
-                        + (azi - gather(a_f.z, &bf.j, k)) * load(&bf.gz, k);
-                    k += LANES;
-                }
+                add_relative_accel(&mut acc, bf, bf.range(q), [axi, ayi, azi], a_f);
                 let mut acc = sum(acc);
                 for k in bb.range(q) {
                     acc += ai[0] * bb.gx[k] + ai[1] * bb.gy[k] + ai[2] * bb.gz[k];
