@@ -97,7 +97,7 @@ fn flipped_bytes_in_a_dataset_are_caught_by_its_checksum() {
         let i = inspect_checkpoint(&path).unwrap_or_else(|e| panic!("{e}"));
         assert!(!i.checksums_hold);
         assert!(i.text.contains(&format!("/{name} is corrupt")), "{}", i.text);
-        assert!(i.text.contains("1 of 42 datasets FAIL"), "{}", i.text);
+        assert!(i.text.contains("1 of 44 datasets FAIL"), "{}", i.text);
     }
     fs::write(&path, &clean).expect("write");
     let i = inspect_checkpoint(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -111,6 +111,24 @@ fn missing_dataset_is_named() {
     hdf5::File::open_rw(&path).and_then(|f| f.unlink("fluid/pressure")).expect("unlink");
     let e = read_error(&path);
     assert!(e.contains("missing dataset /fluid/pressure"), "{e}");
+}
+
+/// A checkpoint from before the fractions had low parts (no
+/// `fluid/alpha_lo`, `fluid/beta_lo`) reads with zeros there, the state the
+/// older porosph ran with, and everything else as stored.
+#[test]
+fn checkpoint_without_fraction_low_parts_reads_them_as_zero() {
+    let dir = TempDir::new("ckpt-no-lo");
+    let (path, stored) = good(&dir, "ckpt.h5");
+    assert!(stored.state.fluid.alpha_lo.iter().flatten().any(|&l| l != 0.0), "the run has no low parts to lose");
+    let f = hdf5::File::open_rw(&path).expect("open");
+    f.unlink("fluid/alpha_lo").and_then(|_| f.unlink("fluid/beta_lo")).expect("unlink");
+    drop(f);
+    let c = read_checkpoint(&path).unwrap_or_else(|e| panic!("{e}"));
+    let fl = &c.state.fluid;
+    assert!(fl.alpha_lo.len() == 2 && fl.alpha_lo.iter().chain(&fl.beta_lo).flatten().all(|&l| l == 0.0));
+    assert_eq!(fl.alpha, stored.state.fluid.alpha);
+    assert!(Simulation::from_saved_state(c.state).is_ok());
 }
 
 #[test]

@@ -207,13 +207,15 @@ fn round_trip_keeps_every_array_and_scalar_with_either_reader() {
         assert_eq!(c.state.step, 5);
         assert_eq!(c.failure, None);
         assert_eq!(c.format_version, 1);
-        // Outer volume per phase = h^3 sum alpha_k (P §6.1): water in the
-        // first block and 30 % of the second, oil 70 % of the second.
+        // Outer volume per phase = h^3 sum alpha_k (P §6.1, with the low
+        // parts of the fractions): water in the first block and 30 % of
+        // the second, oil 70 % of the second.
         let v = phase_volumes(&c.state).0;
         let h3 = f64::from(0.02f32).powi(3);
         assert_eq!(v.len(), 2);
         for (k, vk) in v.iter().enumerate() {
-            let alpha: f64 = sim.fluid.alpha[k].iter().map(|&a| f64::from(a)).sum();
+            let (hi, lo) = (&sim.fluid.alpha[k], &sim.fluid.alpha_lo[k]);
+            let alpha: f64 = hi.iter().zip(lo).map(|(&a, &l)| f64::from(a) + f64::from(l)).sum();
             assert!((vk - h3 * alpha).abs() <= 1e-12 * vk, "phase {k}: {vk}");
         }
         // The mixture block (0.1 x 0.2 x 0.2 m, 5 x 10 x 10 particles) holds

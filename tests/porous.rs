@@ -112,9 +112,12 @@ fn inner_volume(sim: &Simulation) -> f64 {
     sim.phase_volumes_split().1[0]
 }
 
-/// Mass: every phase's total (outer + inner) mass is conserved to f32
-/// rounding while a block absorbs for 2,000 steps (issue 5: <= 1e-6),
-/// and a phase the solid does not absorb never gets an inner fraction:
+/// Mass: every phase's total (outer + inner) mass is conserved while a
+/// block absorbs for 2,000 steps, to 1e-8 (issue 5 asked for 1e-6;
+/// measured 6.8e-10, the rounding of each particle's f32 sum of pair
+/// fluxes; 3.5e-8 when the fractions were f32 alone, whose rounding at
+/// alpha = 1 is biased, `porosph_kernels::phases::join`), and a phase the
+/// solid does not absorb never gets an inner fraction:
 /// beta of "green" stays exactly 0 on every particle at every step.
 #[test]
 fn phase_mass_is_conserved_and_only_the_absorbed_phase_enters() {
@@ -139,7 +142,7 @@ fn phase_mass_is_conserved_and_only_the_absorbed_phase_enters() {
         worst[1]
     );
     assert!(inner[0] > 0.05 * (inner[0] + outer[0]), "the block absorbed too little to test anything");
-    assert!(worst[0] <= 1e-6 && worst[1] <= 1e-6, "mass drift {worst:?}");
+    assert!(worst[0] <= 1e-8 && worst[1] <= 1e-8, "mass drift {worst:?}");
 }
 
 /// Equilibrium (PHYSICS.md §4.2): absorption stops where p^pore = p_0k,
@@ -228,6 +231,8 @@ fn inner_flux_follows_darcy() {
         f.density.push(0.0);
         f.alpha[0].push(0.0);
         f.beta[0].push(1.0);
+        f.alpha_lo[0].push(0.0);
+        f.beta_lo[0].push(0.0);
         f.id.push(1_000_000 + k as u32);
     }
     sim.step().unwrap_or_else(|e| panic!("{e}"));

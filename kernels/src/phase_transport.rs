@@ -30,14 +30,18 @@
 //!   factor for all phases, so that no particle loses more of a phase than
 //!   it holds. Each pair flux is then antisymmetric and adds up to 0 over
 //!   the phases, so every phase's volume is conserved and sum_k alpha_k
-//!   stays 1 to rounding (the correction only removes rounding: 2e-8 of a
-//!   phase's volume in the same 600 steps); the limiter acts only where a
-//!   phase runs out (a settling front), not in a uniform bulk.
+//!   stays 1 to rounding (each phase's volume changes by 2e-11 in the same
+//!   600 steps: the rounding of each particle's f32 sum of pair fluxes,
+//!   with the new fraction computed in f64 from the stored fraction and
+//!   its low part, `phases::join`; 2e-8 when the fractions were f32
+//!   alone); the limiter acts only where a phase runs out (a settling
+//!   front), not in a uniform bulk.
 
 use crate::blocks::BLOCK;
 use crate::iisph::Vel;
 use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::PairLists;
+use crate::phases::{join, split};
 use rayon::prelude::*;
 use wide::Select;
 
@@ -113,17 +117,20 @@ pub fn pair_limit(ff: &PairLists, pair_flux: &[&[Vec<f32>]], limit: &[&[f32]], o
 ///
 /// dalpha_k,i/dt = -sum_j Lambda_ij (F_k,i + F_k,j) . Vbar_ij grad W_ij,
 ///
-/// over fluid neighbours, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt.
-/// F_k = alpha_k (u_mk - j) is the volume-weighted phase flux of
-/// `drift::drift_velocity`; `pair_flux` holds the pair fluxes phi_k,ij of
-/// [`outflow_limit`] and `pair_limit` the Lambda_ij of [`pair_limit`].
+/// over fluid neighbours, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt,
+/// in f64 from the stored fraction `alpha_k` + `alpha_lo`
+/// (`phases::join`). F_k = alpha_k (u_mk - j) is the volume-weighted phase
+/// flux of `drift::drift_velocity`; `pair_flux` holds the pair fluxes
+/// phi_k,ij of [`outflow_limit`] and `pair_limit` the Lambda_ij of
+/// [`pair_limit`].
 pub fn transport(
     ff: &PairLists,
     alpha_k: &[f32],
+    alpha_lo: &[f32],
     pair_flux: &[Vec<f32>],
     pair_limit: &[Vec<f32>],
     dt: f32,
-    out: &mut [f32],
+    out: &mut [f64],
 ) {
     out.par_chunks_mut(BLOCK)
         .zip(ff.used().par_iter().zip(pair_flux.par_iter().zip(pair_limit.par_iter())))
@@ -138,7 +145,7 @@ pub fn transport(
                     acc += load(phi, p) * load(lim, p);
                     p += LANES;
                 }
-                *o = alpha_k[i] - dt * sum(acc);
+                *o = join(alpha_k[i], alpha_lo[i]) - f64::from(dt) * f64::from(sum(acc));
             }
         });
 }
@@ -149,9 +156,18 @@ pub fn transport(
 /// dalpha_k,i/dt = -sum_j Vbar_ij [ (alpha_k,i + alpha_k,j)/2 (u_m,j - u_m,i)
 ///                                  + (F_k,j + F_k,i) ] . grad W_ij,
 ///
-/// with F_k = alpha_k u_mk, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt.
+/// with F_k = alpha_k u_mk, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt
+/// (in f64 from `alpha_k` + `alpha_lo`, as [`transport`]).
 /// `u` is the mixture velocity u_m at the step's start.
-pub fn transport_reference(ff: &PairLists, u: Vel, alpha_k: &[f32], flux: Vel, dt: f32, out: &mut [f32]) {
+pub fn transport_reference(
+    ff: &PairLists,
+    u: Vel,
+    alpha_k: &[f32],
+    alpha_lo: &[f32],
+    flux: Vel,
+    dt: f32,
+    out: &mut [f64],
+) {
     let half = F::splat(0.5);
     out.par_chunks_mut(BLOCK).zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
         for (q, o) in o.iter_mut().enumerate() {
@@ -171,7 +187,7 @@ pub fn transport_reference(ff: &PairLists, u: Vel, alpha_k: &[f32], flux: Vel, d
                 acc += vx * load(gx, p) + vy * load(gy, p) + vz * load(gz, p);
                 p += LANES;
             }
-            *o = ai - dt * sum(acc);
+            *o = join(ai, alpha_lo[i]) - f64::from(dt) * f64::from(sum(acc));
         }
     });
 }
@@ -180,11 +196,11 @@ pub fn transport_reference(ff: &PairLists, u: Vel, alpha_k: &[f32], flux: Vel, d
 /// particle, the sum of the clamped fractions sum_k max(alpha_k, 0), and
 /// the phase with the largest fraction before clamping (the fallback when
 /// every fraction is <= 0; the first such phase on ties).
-pub fn correction_sums(alpha: &[&[f32]], total: &mut [f32], largest: &mut [u32]) {
+pub fn correction_sums(alpha: &[&[f64]], total: &mut [f64], largest: &mut [u32]) {
     total.par_chunks_mut(BLOCK).zip(largest.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (t, l))| {
         for q in 0..t.len() {
             let i = b * BLOCK + q;
-            let mut s = 0.0f32;
+            let mut s = 0.0f64;
             let mut best = 0usize;
             for (k, a) in alpha.iter().enumerate() {
                 s += a[i].max(0.0);
@@ -201,12 +217,13 @@ pub fn correction_sums(alpha: &[&[f32]], total: &mut [f32], largest: &mut [u32])
 /// Pass 14, second half, for phase k: negative fractions become 0, the rest
 /// are divided by `total` so that they sum to 1; where every fraction was
 /// <= 0, the phase `largest` gets 1 and the others 0. Reads
-/// `alpha_next` (the transported fraction of phase k), writes `out`.
-pub fn correct(alpha_next: &[f32], total: &[f32], largest: &[u32], k: usize, out: &mut [f32]) {
-    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
-        for (q, v) in o.iter_mut().enumerate() {
+/// `alpha_next` (the transported fraction of phase k, f64), writes the
+/// store's `out` and `out_lo` (`phases::split`).
+pub fn correct(alpha_next: &[f64], total: &[f64], largest: &[u32], k: usize, out: &mut [f32], out_lo: &mut [f32]) {
+    out.par_chunks_mut(BLOCK).zip(out_lo.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (o, lo))| {
+        for (q, (v, l)) in o.iter_mut().zip(lo.iter_mut()).enumerate() {
             let i = b * BLOCK + q;
-            *v = if (total[i] - 1.0).abs() <= 2.0 * f32::EPSILON {
+            let c = if (total[i] - 1.0).abs() <= 2.0 * f64::EPSILON {
                 // Already normalised up to rounding: dividing by a total one
                 // ulp off 1 would only add a rounding bias (a drift of each
                 // phase's volume over thousands of steps).
@@ -218,6 +235,7 @@ pub fn correct(alpha_next: &[f32], total: &[f32], largest: &[u32], k: usize, out
             } else {
                 0.0
             };
+            (*v, *l) = split(c);
         }
     });
 }

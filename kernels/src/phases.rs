@@ -13,6 +13,30 @@ pub use crate::iisph::MIN_ALPHA_F;
 /// sigma grad(alpha_k) / alpha_k of phase k is dropped (PHYSICS.md §4.1).
 pub const MIN_PHASE_FRACTION: f32 = 0.01;
 
+/// A volume fraction as the store keeps it: `hi`, the f32 that every pass
+/// reads, and `lo`, the part of the fraction that f32 cannot hold
+/// (|lo| <= ulp(hi) / 2), so that hi + lo carries about 48 bits. The
+/// passes that move fractions (transport, absorption exchange, the
+/// correction, the moves in and out of solids) compute hi + lo + change in
+/// f64 and store it split again. With f32 alone the phases' volumes drift:
+/// a pure particle (alpha_k = 1) that loses less than half an ulp of 1
+/// (3e-8) to a neighbour keeps 1 while the neighbour gains it, and since
+/// diffusion always flows out of pure particles the rounding is biased
+/// (measured in Example 6: +8.3e-7 of blue's volume in 0.3 s, from the
+/// transport at alpha = 1 and the correction that renormalised it).
+#[inline(always)]
+pub fn join(hi: f32, lo: f32) -> f64 {
+    f64::from(hi) + f64::from(lo)
+}
+
+/// Splits `v` into the `hi` and `lo` of [`join`]: hi is v rounded to f32,
+/// lo the remainder (exact in f64, rounded to f32).
+#[inline(always)]
+pub fn split(v: f64) -> (f32, f32) {
+    let hi = v as f32;
+    (hi, (v - f64::from(hi)) as f32)
+}
+
 /// Constants of one phase k used by the drift passes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PhaseConstants {
@@ -47,3 +71,25 @@ impl<'a> PhaseVel<'a> {
 
 /// Three output slices of a vector field (one pass writes them together).
 pub use crate::iisph::VelMut;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_keeps_what_f32_rounds_away() {
+        // 1 - 1e-8 is 1 in f32; hi + lo holds it.
+        let v = 1.0 - 1e-8;
+        let (hi, lo) = split(v);
+        assert_eq!(hi, 1.0);
+        assert!((join(hi, lo) - v).abs() < 1e-15, "{}", join(hi, lo) - v);
+        // Ten thousand losses of 1e-9 from a pure particle: f32 alone keeps 1.
+        let (mut hi, mut lo, mut plain) = (1.0f32, 0.0f32, 1.0f32);
+        for _ in 0..10_000 {
+            (hi, lo) = split(join(hi, lo) - 1e-9);
+            plain -= 1e-9;
+        }
+        assert_eq!(plain, 1.0);
+        assert!((join(hi, lo) - (1.0 - 1e-5)).abs() < 1e-12, "{}", join(hi, lo));
+    }
+}

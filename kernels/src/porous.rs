@@ -31,6 +31,7 @@
 use crate::blocks::BLOCK;
 use crate::iisph::{Vel, VelMut};
 use crate::neighbors::PairLists;
+use crate::phases::{join, split};
 use rayon::prelude::*;
 
 /// Pass 6, P-Eq. 15 for phase k: phi_sk = sum_f beta_fk W_sf / N_f over the
@@ -258,21 +259,23 @@ pub const MIN_EXCHANGE_FRACTION: f32 = 0.001;
 /// from `alpha` to `beta` (x > 0, absorption) or back (x < 0, emission),
 /// at most what the source holds, and all of it where less than
 /// [`MIN_EXCHANGE_FRACTION`] would be left. alpha_k + beta_k is unchanged
-/// up to rounding, so every phase's mass is conserved.
-pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f32], beta: &mut [f32]) {
+/// up to f64 rounding, so every phase's mass is conserved (the fractions
+/// are the f64 ones of the step's transport, `phases::join`).
+pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f64], beta: &mut [f64]) {
+    let min = f64::from(MIN_EXCHANGE_FRACTION);
     alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
         for q in 0..a.len() {
-            let x = dt * gamma[b * BLOCK + q];
+            let x = f64::from(dt * gamma[b * BLOCK + q]);
             let moved = if x > 0.0 {
                 let src = a[q].max(0.0);
-                if src - x < MIN_EXCHANGE_FRACTION {
+                if src - x < min {
                     src
                 } else {
                     x
                 }
             } else if x < 0.0 {
                 let src = be[q].max(0.0);
-                if src + x < MIN_EXCHANGE_FRACTION {
+                if src + x < min {
                     -src
                 } else {
                     x
@@ -289,15 +292,25 @@ pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f32], beta: &mut [f32]) {
 /// P Alg. 4's fallback, at the start of a step: a fluid particle with no
 /// porous solid within reach (N_f = 0) has nothing to be inside of, so its
 /// inner fractions become outer ones, alpha_k += beta_k, beta_k = 0.
-pub fn release_outside(n_f: &[f32], alpha: &mut [f32], beta: &mut [f32]) {
-    alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
-        for q in 0..a.len() {
-            if n_f[b * BLOCK + q] <= 0.0 && be[q] != 0.0 {
-                a[q] += be[q];
-                be[q] = 0.0;
+pub fn release_outside(n_f: &[f32], alpha: Fractions, beta: Fractions) {
+    let (ah, al, bh, bl) = (alpha.hi, alpha.lo, beta.hi, beta.lo);
+    let chunks = ah.par_chunks_mut(BLOCK).zip(al.par_chunks_mut(BLOCK));
+    chunks.zip(bh.par_chunks_mut(BLOCK).zip(bl.par_chunks_mut(BLOCK))).enumerate().for_each(
+        |(b, ((ah, al), (bh, bl)))| {
+            for q in 0..ah.len() {
+                if n_f[b * BLOCK + q] <= 0.0 && (bh[q] != 0.0 || bl[q] != 0.0) {
+                    (ah[q], al[q]) = split(join(ah[q], al[q]) + join(bh[q], bl[q]));
+                    (bh[q], bl[q]) = (0.0, 0.0);
+                }
             }
-        }
-    });
+        },
+    );
+}
+
+/// One phase's fractions in the store: `hi` and `lo` of `phases::join`.
+pub struct Fractions<'a> {
+    pub hi: &'a mut [f32],
+    pub lo: &'a mut [f32],
 }
 
 /// Liquid amid a porous solid is in its pores: a fluid particle whose
@@ -318,17 +331,22 @@ pub fn release_outside(n_f: &[f32], alpha: &mut [f32], beta: &mut [f32]) {
 /// kicked to 30 m/s). Emission (beta -> alpha, P-Eq. 22 with p^pore >
 /// p_0k) then sticks only near the surface, where the liquid leaves the
 /// solid; inside, the liquid reaches it by Darcy flow.
-pub fn take_inside(fill_k: &[f32], alpha: &mut [f32], beta: &mut [f32]) {
-    alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
-        for q in 0..a.len() {
-            let share = inside_share(fill_k[b * BLOCK + q]);
-            if share > 0.0 && a[q] != 0.0 {
-                let moved = if share >= 1.0 { a[q] } else { share * a[q] };
-                be[q] += moved;
-                a[q] -= moved;
+pub fn take_inside(fill_k: &[f32], alpha: Fractions, beta: Fractions) {
+    let (ah, al, bh, bl) = (alpha.hi, alpha.lo, beta.hi, beta.lo);
+    let chunks = ah.par_chunks_mut(BLOCK).zip(al.par_chunks_mut(BLOCK));
+    chunks.zip(bh.par_chunks_mut(BLOCK).zip(bl.par_chunks_mut(BLOCK))).enumerate().for_each(
+        |(b, ((ah, al), (bh, bl)))| {
+            for q in 0..ah.len() {
+                let share = inside_share(fill_k[b * BLOCK + q]);
+                if share > 0.0 && (ah[q] != 0.0 || al[q] != 0.0) {
+                    let a = join(ah[q], al[q]);
+                    let moved = if share >= 1.0 { a } else { f64::from(share) * a };
+                    (bh[q], bl[q]) = split(join(bh[q], bl[q]) + moved);
+                    (ah[q], al[q]) = split(a - moved);
+                }
             }
-        }
-    });
+        },
+    );
 }
 
 /// The fill from which [`take_inside`] moves outer liquid inside: about
@@ -374,9 +392,10 @@ mod tests {
     #[test]
     fn release_outside_moves_beta_to_alpha_only_without_solids() {
         let n = [0.0, 3.0];
-        let mut a = vec![0.2, 0.2];
-        let mut b = vec![0.8, 0.8];
-        release_outside(&n, &mut a, &mut b);
+        let (mut a, mut b) = (vec![0.2, 0.2], vec![0.8, 0.8]);
+        let (mut al, mut bl) = (vec![0.0; 2], vec![0.0; 2]);
+        release_outside(&n, Fractions { hi: &mut a, lo: &mut al }, Fractions { hi: &mut b, lo: &mut bl });
         assert_eq!((a, b), (vec![1.0, 0.2], vec![0.0, 0.8]));
+        assert_eq!((al[1], bl), (0.0, vec![0.0; 2]));
     }
 }

@@ -11,7 +11,7 @@ use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::Vel;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phase_transport::{correct, correction_sums, outflow_limit, pair_limit, transport};
-use porosph_kernels::phases::{PhaseConstants, PhaseVel, VelMut};
+use porosph_kernels::phases::{join, PhaseConstants, PhaseVel, VelMut};
 use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
 
 struct Lcg(u64);
@@ -119,38 +119,46 @@ fn conservative_transport_conserves_and_stays_positive() {
         let phiref: Vec<&[Vec<f32>]> = phi.iter().map(|p| p.as_slice()).collect();
         let mut pl = vec![Vec::new(); nb];
         pair_limit(&lat.ff, &phiref, &lref, &mut pl);
-        let mut next = vec![vec![0.0f32; n]; np];
+        let mut next = vec![vec![0.0f64; n]; np];
+        let lo = vec![0.0f32; n];
         for (k, out) in next.iter_mut().enumerate() {
-            transport(&lat.ff, &alpha[k], &phi[k], &pl, dt, out);
+            transport(&lat.ff, &alpha[k], &lo, &phi[k], &pl, dt, out);
         }
         let moved: f64 =
-            (0..np).map(|k| (0..n).map(|i| f64::from((next[k][i] - alpha[k][i]).abs())).sum::<f64>()).sum();
+            (0..np).map(|k| (0..n).map(|i| (next[k][i] - f64::from(alpha[k][i])).abs()).sum::<f64>()).sum();
+        // Each pair flux leaves one particle and enters the other: the
+        // volume changes only by the f32 rounding of each particle's sum
+        // of pair fluxes (about 1e-8 of its gross flux), not by the
+        // rounding of the stored fraction (the f64 result).
+        let mut worst = 0.0f64;
         for k in 0..np {
-            let (a, b): (f64, f64) =
-                (alpha[k].iter().map(|&x| f64::from(x)).sum(), next[k].iter().map(|&x| f64::from(x)).sum());
-            assert!(((b - a) / a).abs() < 1e-6, "phase {k} of {np}: volume {a} -> {b}");
+            let (a, b): (f64, f64) = (alpha[k].iter().map(|&x| f64::from(x)).sum(), next[k].iter().sum());
+            worst = worst.max(((b - a) / a).abs());
         }
+        assert!(worst < 1e-8, "{np} phases: largest relative volume change {worst:e}");
         for i in 0..n {
-            let s: f32 = (0..np).map(|k| next[k][i]).sum();
+            let s: f64 = (0..np).map(|k| next[k][i]).sum();
             assert!((s - 1.0).abs() < 1e-5, "particle {i}: sum {s}");
             for (k, a) in next.iter().enumerate() {
                 assert!(a[i] >= -1e-5, "particle {i}, phase {k}: {}", a[i]);
             }
         }
         // The correction then only removes rounding.
-        let nref: Vec<&[f32]> = next.iter().map(|a| a.as_slice()).collect();
+        let nref: Vec<&[f64]> = next.iter().map(|a| a.as_slice()).collect();
         let (mut total, mut largest) = (vec![0.0; n], vec![0u32; n]);
         correction_sums(&nref, &mut total, &mut largest);
         let mut fixed = vec![vec![0.0f32; n]; np];
-        for (k, out) in fixed.iter_mut().enumerate() {
-            correct(&next[k], &total, &largest, k, out);
+        let mut fixed_lo = vec![vec![0.0f32; n]; np];
+        for (k, (out, lo)) in fixed.iter_mut().zip(fixed_lo.iter_mut()).enumerate() {
+            correct(&next[k], &total, &largest, k, out, lo);
         }
         for i in 0..n {
-            let s: f32 = (0..np).map(|k| fixed[k][i]).sum();
-            assert!((s - 1.0).abs() < 1e-6 && (0..np).all(|k| fixed[k][i] >= 0.0));
+            let s: f64 = (0..np).map(|k| join(fixed[k][i], fixed_lo[k][i])).sum();
+            assert!((s - 1.0).abs() < 1e-12 && (0..np).all(|k| fixed[k][i] >= 0.0), "particle {i}: sum {s}");
         }
         println!(
-            "{np} phases, {n} particles: {limited} particle-phase limits < 1, total |change| {moved:.1} (fractions)"
+            "{np} phases, {n} particles: {limited} particle-phase limits < 1, total |change| {moved:.1} (fractions), \
+             largest relative volume change {worst:.2e}"
         );
         assert!(limited > n / 10, "the limiter was not exercised");
         assert!(moved > n as f64 / 10.0, "nothing moved");
@@ -161,16 +169,16 @@ fn conservative_transport_conserves_and_stays_positive() {
 /// gives the phase that was largest before clamping.
 #[test]
 fn correction_clamps_renormalises_and_falls_back() {
-    let a0 = [0.6f32, -0.2, -0.5];
-    let a1 = [0.6f32, -0.1, -0.1];
-    let a2 = [0.0f32, 0.5, 0.0];
-    let next: [&[f32]; 3] = [&a0, &a1, &a2];
+    let a0 = [0.6f64, -0.2, -0.5];
+    let a1 = [0.6f64, -0.1, -0.1];
+    let a2 = [0.0f64, 0.5, 0.0];
+    let next: [&[f64]; 3] = [&a0, &a1, &a2];
     let (mut total, mut largest) = (vec![0.0; 3], vec![0u32; 3]);
     correction_sums(&next, &mut total, &mut largest);
     let out: Vec<Vec<f32>> = (0..3)
         .map(|k| {
-            let mut o = vec![0.0; 3];
-            correct(next[k], &total, &largest, k, &mut o);
+            let (mut o, mut lo) = (vec![0.0; 3], vec![0.0; 3]);
+            correct(next[k], &total, &largest, k, &mut o, &mut lo);
             o
         })
         .collect();

@@ -35,7 +35,9 @@
 //! The particle arrays come from the stores' field registry
 //! ([`FluidStore::for_each_column`]): an array added to a store later is
 //! saved and restored with no change here (a file from before it then lacks
-//! that dataset, and reading it is an error rather than a silent default).
+//! that dataset, and reading it is an error rather than a silent default;
+//! the one exception is the fractions' low parts, `alpha_lo` and `beta_lo`,
+//! which an older run did not have, so 0 is its exact state).
 //! Datasets are contiguous and uncompressed, so a checkpoint is written at
 //! disk speed; a reader can also take the bytes straight from a memory map
 //! ([`ReadMethod::Mmap`]), which measured no faster (bench/RESULTS.md).
@@ -51,6 +53,10 @@ use hdf5::{Dataset, File, Group, H5Type, Location};
 use std::fmt::{self, Display, Write as _};
 use std::fs;
 use std::path::Path;
+
+/// The fluid's low parts of the fractions (`FluidStore::alpha_lo`), which
+/// files written before them lack; they read as 0 there.
+const LOW_PARTS: [&str; 2] = ["alpha_lo", "beta_lo"];
 
 /// The value of the root attribute `format`.
 pub const FORMAT: &str = "porosph checkpoint";
@@ -469,8 +475,7 @@ pub fn inspect_checkpoint(path: &Path) -> Result<Inspection, IoError> {
 /// h^3 alpha_k and h^3 beta_k (h = particle spacing; P §6.1).
 pub fn phase_volumes(state: &SavedState) -> (Vec<f64>, Vec<f64>) {
     let h = f64::from(state.scene.simulation.particle_spacing);
-    let sum = |a: &Vec<f32>| h * h * h * a.iter().map(|&x| f64::from(x)).sum::<f64>();
-    (state.fluid.alpha.iter().map(sum).collect(), state.fluid.beta.iter().map(sum).collect())
+    state.fluid.phase_volumes(h * h * h)
 }
 
 fn summarize(s: &mut String, path: &Path, c: &Checkpoint, checks: &[DatasetCheck]) -> fmt::Result {
@@ -619,7 +624,15 @@ impl<'a> Reader<'a> {
         fluid.for_each_column_mut(|name, unit, c| {
             known.push(name);
             if result.is_ok() {
-                result = self.read_column(&g, name, unit, c, nf, phases);
+                result = match c {
+                    // A file from before the fractions had low parts: the
+                    // run it saved had none, so zeros continue it exactly.
+                    ColumnMut::PerPhase(vs) if LOW_PARTS.contains(&name) && !g.link_exists(name) => {
+                        *vs = vec![vec![0.0; nf]; phases];
+                        Ok(())
+                    }
+                    c => self.read_column(&g, name, unit, c, nf, phases),
+                };
             }
         });
         result.clone()?;

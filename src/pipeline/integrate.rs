@@ -42,8 +42,9 @@ pub(super) fn positions(
 /// Pass 14's correction (P §6.4, P Alg. 4): negative fractions to 0, then
 /// every fraction of a particle scaled by one common factor so that
 /// sum_k (alpha_k + beta_k) = 1 (with porous solids alpha and beta
-/// together, keeping the alpha/beta split). Nothing with one phase and no
-/// porous solid.
+/// together, keeping the alpha/beta split), in f64, stored as the fluid's
+/// fractions and their low parts. Nothing with one phase and no porous
+/// solid.
 pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, arena: &Bump, tm: &mut PassTimes) {
     let n = fluid.len();
     if next.alpha.is_empty() {
@@ -60,12 +61,14 @@ pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, are
                 &next.beta[(k - np) * n..(k - np + 1) * n]
             }
         }));
-        let total = arena.alloc_slice_fill_copy(n, 0.0f32);
+        let total = arena.alloc_slice_fill_copy(n, 0.0f64);
         let largest = arena.alloc_slice_fill_copy(n, 0u32);
         phase_transport::correction_sums(all, total, largest);
-        let outputs = fluid.alpha.iter_mut().chain(fluid.beta.iter_mut().take(if porous { np } else { 0 }));
-        for (k, a) in outputs.enumerate() {
-            phase_transport::correct(all[k], total, largest, k, a);
+        let sets = if porous { np } else { 0 };
+        let hi = fluid.alpha.iter_mut().chain(fluid.beta.iter_mut().take(sets));
+        let lo = fluid.alpha_lo.iter_mut().chain(fluid.beta_lo.iter_mut().take(sets));
+        for (k, (a, l)) in hi.zip(lo).enumerate() {
+            phase_transport::correct(all[k], total, largest, k, a, l);
         }
     });
 }

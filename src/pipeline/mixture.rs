@@ -20,14 +20,15 @@ use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
 use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::neighbors::{PairLists, Points};
 use porosph_kernels::phase_transport;
-use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
 use rayon::prelude::*;
 
-/// The fractions after the transport, phase k at `[k n, (k + 1) n)`.
+/// The fractions after the transport, phase k at `[k n, (k + 1) n)`, in
+/// f64 (the store's alpha + alpha_lo moved, `porosph_kernels::phases::join`).
 pub(super) struct NextFractions<'a> {
-    pub alpha: &'a mut [f32],
+    pub alpha: &'a mut [f64],
     /// Empty without porous solids.
-    pub beta: &'a mut [f32],
+    pub beta: &'a mut [f64],
 }
 
 /// Passes 10-12, or with one phase and porous solids just the fractions as
@@ -55,12 +56,15 @@ pub(super) fn drift_and_transport<'a>(
     let porous = terms.is_some();
     let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
     let nt = if mixture || porous { n } else { 0 };
-    let alpha_next = zeros(np * nt);
-    let beta_next = zeros(if porous { np * n } else { 0 });
+    let alpha_next = arena.alloc_slice_fill_copy(np * nt, 0.0f64);
+    let beta_next = arena.alloc_slice_fill_copy(if porous { np * n } else { 0 }, 0.0f64);
     if !mixture {
         if porous {
-            alpha_next.copy_from_slice(&fluid.alpha[0]);
-            beta_next.copy_from_slice(&fluid.beta[0]);
+            let joined = |out: &mut [f64], hi: &[f32], lo: &[f32]| {
+                out.par_iter_mut().zip(hi.par_iter().zip(lo.par_iter())).for_each(|(o, (&h, &l))| *o = join(h, l));
+            };
+            joined(alpha_next, &fluid.alpha[0], &fluid.alpha_lo[0]);
+            joined(beta_next, &fluid.beta[0], &fluid.beta_lo[0]);
         }
         return (NextFractions { alpha: alpha_next, beta: beta_next }, 0.0);
     }
@@ -151,9 +155,9 @@ pub(super) fn drift_and_transport<'a>(
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let (pair_limit, pair_flux) = (&mut w.pair_limit, &mut w.pair_flux);
         let mut tr = Transport { p, arena, n, dt, u, pair_limit, pair_flux };
-        tr.run(&w.ff, alpha, phase_vel(arena, fx, fy, fz, n), alpha_next);
+        tr.run(&w.ff, alpha, &fluid.alpha_lo, phase_vel(arena, fx, fy, fz, n), alpha_next);
         if porous {
-            tr.run(&w.ffb, beta, phase_vel(arena, gx, gy, gz, n), beta_next);
+            tr.run(&w.ffb, beta, &fluid.beta_lo, phase_vel(arena, gx, gy, gz, n), beta_next);
         }
     });
     (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed)
@@ -173,9 +177,9 @@ struct Transport<'a, 'b> {
 }
 
 impl Transport<'_, '_> {
-    /// Moves the fractions `frac` (per phase) by the fluxes `flux` over the
-    /// pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
-    fn run(&mut self, ff: &PairLists, frac: &[&[f32]], flux: PhaseVel, next: &mut [f32]) {
+    /// Moves the fractions `frac` + `lo` (per phase) by the fluxes `flux`
+    /// over the pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
+    fn run(&mut self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
         let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
         if self.p.conservative_transport {
             let nb = ff.used().len();
@@ -195,11 +199,11 @@ impl Transport<'_, '_> {
             let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
             phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
             for (k, out) in next.chunks_mut(n).enumerate() {
-                phase_transport::transport(ff, frac[k], phi[k], &pair_limit[..nb], dt, out);
+                phase_transport::transport(ff, frac[k], &lo[k], phi[k], &pair_limit[..nb], dt, out);
             }
         } else {
             for (k, out) in next.chunks_mut(n).enumerate() {
-                phase_transport::transport_reference(ff, self.u, frac[k], flux.phase(k), dt, out);
+                phase_transport::transport_reference(ff, self.u, frac[k], &lo[k], flux.phase(k), dt, out);
             }
         }
     }

@@ -236,11 +236,10 @@ impl Simulation {
     }
 
     /// Outer and inner volume of each phase, sum_i h^3 alpha_k,i and
-    /// sum_i h^3 beta_k,i, m^3 (f64 sums in particle order).
+    /// sum_i h^3 beta_k,i, m^3 (f64 sums in particle order, of the stored
+    /// fractions with their low parts, `FluidStore::alpha_lo`).
     pub fn phase_volumes_split(&self) -> (Vec<f64>, Vec<f64>) {
-        let cell = f64::from(self.params.cell_volume());
-        let sum = |a: &Vec<f32>| cell * a.iter().map(|&x| f64::from(x)).sum::<f64>();
-        (self.fluid.alpha.iter().map(sum).collect(), self.fluid.beta.iter().map(sum).collect())
+        self.fluid.phase_volumes(f64::from(self.params.cell_volume()))
     }
 
     /// Mass of each phase in the fluid, rho_k times its volume, kg.

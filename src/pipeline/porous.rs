@@ -26,7 +26,7 @@ use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self, Vel, VelMut};
 use porosph_kernels::porous::{
     absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
-    FluidPhaseOut, SolidPhase,
+    FluidPhaseOut, Fractions, SolidPhase,
 };
 use rayon::prelude::*;
 
@@ -64,8 +64,8 @@ pub(super) fn partition<'a>(
         );
         let n_f = zeros(arena, fluid.len());
         iisph::kernel_sums(&w.fs, mask, n_f);
-        for (a, b) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()) {
-            release_outside(n_f, a, b);
+        for (alpha, beta) in outer_inner(fluid) {
+            release_outside(n_f, alpha, beta);
         }
         // The fill of each phase's absorbing solids, for `settle`: each
         // solid particle counts with its current volume h^3 (1 + tr eps)
@@ -110,10 +110,17 @@ pub(super) fn partition<'a>(
 pub(super) fn settle(fluid: &mut FluidStore, part: &Partition, tm: &mut PassTimes) {
     let n = fluid.len();
     tm.time(pass::POROUS, || {
-        for (k, (a, b)) in fluid.alpha.iter_mut().zip(fluid.beta.iter_mut()).enumerate() {
-            take_inside(&part.fill[k * n..(k + 1) * n], a, b);
+        for (k, (alpha, beta)) in outer_inner(fluid).enumerate() {
+            take_inside(&part.fill[k * n..(k + 1) * n], alpha, beta);
         }
     });
+}
+
+/// Each phase's outer and inner fractions in the store, with their low parts.
+fn outer_inner(fluid: &mut FluidStore) -> impl Iterator<Item = (Fractions<'_>, Fractions<'_>)> {
+    let outer = fluid.alpha.iter_mut().zip(fluid.alpha_lo.iter_mut());
+    let inner = fluid.beta.iter_mut().zip(fluid.beta_lo.iter_mut());
+    outer.zip(inner).map(|((ah, al), (bh, bl))| (Fractions { hi: ah, lo: al }, Fractions { hi: bh, lo: bl }))
 }
 
 /// P Alg. 2 and the solid side of Alg. 3 ([`pore_state`]), before the
@@ -152,8 +159,8 @@ pub(super) fn solid_terms<'a>(
 pub(super) fn exchange(
     terms: &PoreTerms,
     n: usize,
-    alpha_next: &mut [f32],
-    beta_next: &mut [f32],
+    alpha_next: &mut [f64],
+    beta_next: &mut [f64],
     dt: f32,
     tm: &mut PassTimes,
 ) {

@@ -169,6 +169,7 @@ impl Simulation {
         fluid.density = vec![0.0; nf];
         fluid.alpha = (0..k).map(|ph| sampled_fluid.fractions.iter().map(|f| f[ph]).collect()).collect();
         fluid.beta = vec![vec![0.0; nf]; k];
+        (fluid.alpha_lo, fluid.beta_lo) = (vec![vec![0.0; nf]; k], vec![vec![0.0; nf]; k]);
         fluid.id = (0..nf as u32).collect();
 
         let mut walls = WallStore::default();

@@ -129,8 +129,30 @@ soa! {
         /// particle inside a porous solid (P-Eq. 7); sum_k (alpha_k +
         /// beta_k) = 1.
         beta: Vec<Vec<f32>> [""],
+        /// The part of each alpha_k that f32 cannot hold: the fraction is
+        /// alpha_k + alpha_lo_k (`porosph_kernels::phases::join`, which says
+        /// why); every pass reads alpha_k, the passes that move fractions
+        /// keep both.
+        alpha_lo: Vec<Vec<f32>> [""],
+        /// The same for beta_k.
+        beta_lo: Vec<Vec<f32>> [""],
         /// Stable particle id.
         id: Vec<u32> [""],
+    }
+}
+
+impl FluidStore {
+    /// Outer and inner volume of each phase, `cell` times the sums over the
+    /// particles of alpha_k + alpha_lo_k and of beta_k + beta_lo_k (f64, in
+    /// particle order), m^3 for `cell` = h^3.
+    pub fn phase_volumes(&self, cell: f64) -> (Vec<f64>, Vec<f64>) {
+        let sum = |hi: &Vec<f32>, lo: Option<&Vec<f32>>| {
+            let lo = |i: usize| lo.map_or(0.0, |l| f64::from(l[i]));
+            cell * hi.iter().enumerate().map(|(i, &x)| f64::from(x) + lo(i)).sum::<f64>()
+        };
+        let outer = self.alpha.iter().enumerate().map(|(k, a)| sum(a, self.alpha_lo.get(k))).collect();
+        let inner = self.beta.iter().enumerate().map(|(k, b)| sum(b, self.beta_lo.get(k))).collect();
+        (outer, inner)
     }
 }
 
@@ -233,6 +255,8 @@ mod tests {
             y: vec![10.0, 11.0, 12.0],
             alpha: vec![vec![0.1, 0.2, 0.3], vec![0.9, 0.8, 0.7]],
             beta: vec![vec![0.0; 3], vec![0.0; 3]],
+            alpha_lo: vec![vec![1e-9, 2e-9, 3e-9], vec![0.0; 3]],
+            beta_lo: vec![vec![0.0; 3], vec![0.0; 3]],
             id: vec![5, 6, 7],
             ..Default::default()
         };
@@ -249,10 +273,11 @@ mod tests {
         assert_eq!(s.x, vec![2.0, 0.0, 1.0]);
         assert_eq!(s.y, vec![12.0, 10.0, 11.0]);
         assert_eq!(s.alpha[1], vec![0.7, 0.9, 0.8]);
+        assert_eq!(s.alpha_lo[0], vec![3e-9, 1e-9, 2e-9]);
         assert_eq!(s.id, vec![7, 5, 6]);
         assert_eq!(s.pressure, vec![102.0, 100.0, 101.0]);
         let mut names = Vec::new();
         s.for_each_column(|n, _, _| names.push(n));
-        assert!(names.contains(&"pressure") && names.contains(&"alpha") && names.len() == 11);
+        assert!(names.contains(&"pressure") && names.contains(&"alpha") && names.len() == 13);
     }
 }
