@@ -293,24 +293,28 @@ pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f64], beta: &mut [f64]) {
 /// porous solid within reach (N_f = 0) has nothing to be inside of, so its
 /// inner fractions become outer ones, alpha_k += beta_k, beta_k = 0.
 pub fn release_outside(n_f: &[f32], alpha: Fractions, beta: Fractions) {
-    let (ah, al, bh, bl) = (alpha.hi, alpha.lo, beta.hi, beta.lo);
-    let chunks = ah.par_chunks_mut(BLOCK).zip(al.par_chunks_mut(BLOCK));
-    chunks.zip(bh.par_chunks_mut(BLOCK).zip(bl.par_chunks_mut(BLOCK))).enumerate().for_each(
-        |(b, ((ah, al), (bh, bl)))| {
-            for q in 0..ah.len() {
-                if n_f[b * BLOCK + q] <= 0.0 && (bh[q] != 0.0 || bl[q] != 0.0) {
-                    (ah[q], al[q]) = split(join(ah[q], al[q]) + join(bh[q], bl[q]));
-                    (bh[q], bl[q]) = (0.0, 0.0);
-                }
-            }
-        },
-    );
+    move_between(alpha, beta, |i, a, b| (n_f[i] <= 0.0 && b != 0.0).then_some((a + b, 0.0)));
 }
 
 /// One phase's fractions in the store: `hi` and `lo` of `phases::join`.
 pub struct Fractions<'a> {
     pub hi: &'a mut [f32],
     pub lo: &'a mut [f32],
+}
+
+/// Per fluid particle i, `f(i, alpha, beta)` on the joined outer and inner
+/// fraction of one phase; where it gives new ones, they are stored split.
+fn move_between(alpha: Fractions, beta: Fractions, f: impl Fn(usize, f64, f64) -> Option<(f64, f64)> + Sync) {
+    let outer = alpha.hi.par_chunks_mut(BLOCK).zip(alpha.lo.par_chunks_mut(BLOCK));
+    let inner = beta.hi.par_chunks_mut(BLOCK).zip(beta.lo.par_chunks_mut(BLOCK));
+    outer.zip(inner).enumerate().for_each(|(b, ((ah, al), (bh, bl)))| {
+        for q in 0..ah.len() {
+            if let Some((a, be)) = f(b * BLOCK + q, join(ah[q], al[q]), join(bh[q], bl[q])) {
+                (ah[q], al[q]) = split(a);
+                (bh[q], bl[q]) = split(be);
+            }
+        }
+    });
 }
 
 /// Liquid amid a porous solid is in its pores: a fluid particle whose
@@ -332,21 +336,13 @@ pub struct Fractions<'a> {
 /// p_0k) then sticks only near the surface, where the liquid leaves the
 /// solid; inside, the liquid reaches it by Darcy flow.
 pub fn take_inside(fill_k: &[f32], alpha: Fractions, beta: Fractions) {
-    let (ah, al, bh, bl) = (alpha.hi, alpha.lo, beta.hi, beta.lo);
-    let chunks = ah.par_chunks_mut(BLOCK).zip(al.par_chunks_mut(BLOCK));
-    chunks.zip(bh.par_chunks_mut(BLOCK).zip(bl.par_chunks_mut(BLOCK))).enumerate().for_each(
-        |(b, ((ah, al), (bh, bl)))| {
-            for q in 0..ah.len() {
-                let share = inside_share(fill_k[b * BLOCK + q]);
-                if share > 0.0 && (ah[q] != 0.0 || al[q] != 0.0) {
-                    let a = join(ah[q], al[q]);
-                    let moved = if share >= 1.0 { a } else { f64::from(share) * a };
-                    (bh[q], bl[q]) = split(join(bh[q], bl[q]) + moved);
-                    (ah[q], al[q]) = split(a - moved);
-                }
-            }
-        },
-    );
+    move_between(alpha, beta, |i, a, b| {
+        let share = inside_share(fill_k[i]);
+        (share > 0.0 && a != 0.0).then(|| {
+            let moved = if share >= 1.0 { a } else { f64::from(share) * a };
+            (a - moved, b + moved)
+        })
+    });
 }
 
 /// The fill from which [`take_inside`] moves outer liquid inside: about

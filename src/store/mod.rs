@@ -146,13 +146,13 @@ impl FluidStore {
     /// particles of alpha_k + alpha_lo_k and of beta_k + beta_lo_k (f64, in
     /// particle order), m^3 for `cell` = h^3.
     pub fn phase_volumes(&self, cell: f64) -> (Vec<f64>, Vec<f64>) {
-        let sum = |hi: &Vec<f32>, lo: Option<&Vec<f32>>| {
-            let lo = |i: usize| lo.map_or(0.0, |l| f64::from(l[i]));
-            cell * hi.iter().enumerate().map(|(i, &x)| f64::from(x) + lo(i)).sum::<f64>()
+        let sum = |(hi, lo): (&Vec<f32>, &Vec<f32>)| {
+            cell * hi.iter().zip(lo).map(|(&h, &l)| f64::from(h) + f64::from(l)).sum::<f64>()
         };
-        let outer = self.alpha.iter().enumerate().map(|(k, a)| sum(a, self.alpha_lo.get(k))).collect();
-        let inner = self.beta.iter().enumerate().map(|(k, b)| sum(b, self.beta_lo.get(k))).collect();
-        (outer, inner)
+        (
+            self.alpha.iter().zip(&self.alpha_lo).map(sum).collect(),
+            self.beta.iter().zip(&self.beta_lo).map(sum).collect(),
+        )
     }
 }
 
