@@ -68,3 +68,111 @@ fn pressure_is_rho_g_depth_after_one_second() {
     // linearisation error, which we bound at half the target.
     assert!(density_err <= 1.5 * target as f64, "mean density error {:.4} %", 100.0 * density_err);
 }
+
+/// What [`tank_at_rest_per_particle`] measures at one time.
+struct AtRest {
+    /// RMS and median speed of the fluid particles, m/s.
+    rms: f64,
+    median: f64,
+    /// Mean over the particles deeper than 2.5 d of |p - rho g depth| /
+    /// (rho g H), per particle.
+    pressure_error: f64,
+    /// The least-squares slope of p against y over the same particles,
+    /// relative to -rho g, minus 1.
+    slope_error: f64,
+    /// Drop of the fluid's centre of mass since the start, m.
+    settled: f64,
+}
+
+fn at_rest(sim: &Simulation, fill: f64, d: f64, y_start: f64) -> AtRest {
+    let f = &sim.fluid;
+    let n = f.len();
+    let mut speed: Vec<f64> =
+        (0..n).map(|i| f64::from(f.ux[i] * f.ux[i] + f.uy[i] * f.uy[i] + f.uz[i] * f.uz[i]).sqrt()).collect();
+    let rms = (speed.iter().map(|s| s * s).sum::<f64>() / n as f64).sqrt();
+    speed.sort_by(f64::total_cmp);
+    let rho_g = 1000.0 * 9.81;
+    let deep: Vec<(f64, f64)> =
+        (0..n).map(|i| (f64::from(f.y[i]), f64::from(f.pressure[i]))).filter(|&(y, _)| y < fill - 2.5 * d).collect();
+    let m = deep.len() as f64;
+    let pressure_error = deep.iter().map(|&(y, p)| (p - rho_g * (fill - y)).abs()).sum::<f64>() / m / (rho_g * fill);
+    let (sy, sp) = deep.iter().fold((0.0, 0.0), |(a, b), &(y, p)| (a + y, b + p));
+    let (my, mp) = (sy / m, sp / m);
+    let (cov, var) = deep.iter().fold((0.0, 0.0), |(c, v), &(y, p)| (c + (y - my) * (p - mp), v + (y - my) * (y - my)));
+    let y_mean = f.y.iter().map(|&y| f64::from(y)).sum::<f64>() / n as f64;
+    AtRest {
+        rms,
+        median: speed[n / 2],
+        pressure_error,
+        slope_error: -(cov / var) / rho_g - 1.0,
+        settled: y_start - y_mean,
+    }
+}
+
+/// The solver-accuracy issue's tank at rest, measured per particle: 0.3 x
+/// 0.3 (high) x 0.12 m of water at d = 1 cm in a closed tank with 0.1 m of
+/// headroom, mu 0.01 Pa s, max_dt 2 ms, 0.1 % density error, from the
+/// lattice start. Asked (the issue): RMS speed <= 5 mm/s at 1 s and
+/// <= 1 mm/s at 3 s; the per-particle pressure error <= 2 % at 1 s and the
+/// slope of p against depth within 1 % of rho g. Reference: hydrostatics,
+/// p = rho g (H - y) with H the fill height.
+///
+/// FAILS today (2026-12-02): RMS 0.052 m/s at 1 s and 0.028 m/s at 3 s,
+/// pressure error 6.5 % and 4.3 %, slope +2.2 % and +2.3 % off (+0.1 % at
+/// 2 s: it wanders with the motion).
+/// What the motion does not come from, each measured with this set-up up to
+/// 0.5-1 s: the solver's tolerance (RMS 0.065 m/s at 0.5 s at 1e-3, 1e-4 and
+/// 1e-5, the last with 500 iterations per step and converged), the time
+/// step (0.5 ms: 0.066), the start-up (pressure initialised to rho g depth,
+/// or 200 steps with the velocities zeroed each step before the clock
+/// starts: 0.065 and 0.060 m/s 0.1 s later), the free surface (the tank
+/// filled to its lid: 0.060 / 0.052 m/s at 0.1 / 1 s). Where the energy
+/// comes from: the fluid's centre of mass drops 0.62 mm in the first 0.1 s
+/// and 0.90 mm by 1 s, releasing 6.1e-3 and 8.8e-3 J/kg, three to six times
+/// the kinetic energy then (1.8e-3, 1.3e-3 J/kg); with 1 Pa s, which damps
+/// the motion (4.9 mm/s at 1 s), it still drops 1.03 mm. So the column
+/// settles into a denser state whatever the solver does, and mostly in its
+/// bulk, not at its walls: in a box 0.05 m from the floor, the surface and
+/// the x walls and 0.03 m from the z walls the number of particles grows by 0.67 %
+/// by 1 s (2400 to 2416) while their SPH density stays at 1001.08 kg/m^3
+/// (0.108 %, the tolerance); the layer next to each wall moves only
+/// 0.04-0.18 mm closer to it. In a tank twice as wide and twice as long
+/// (0.6 x 0.3 x 0.24 m) the walls' layers move 0.02-0.09 mm, the core's
+/// count grows by 0.50 % by 0.5 s (18000 to 18090) at 1001.11 kg/m^3, the
+/// centre of mass drops 0.65 mm, and the RMS speed is the same, 0.062 m/s
+/// at 0.5 s. So (our reading) as the start lattice disorders, the kernel sum of a
+/// particle's neighbourhood falls at a given number density, the density
+/// rule lets the fluid pack 0.5-0.7 % denser, and the potential energy the
+/// column releases is the motion. The next step: start from a packing that
+/// is already at that equilibrium (a relaxed initial state) rather than
+/// from the cubic lattice, or a density estimate that does not depend on
+/// the arrangement.
+#[test]
+#[ignore = "fails today (see its doc): 3 s of a 10.8k-particle tank, about 2 min on 2 cores"]
+fn tank_at_rest_per_particle() {
+    let (d, fill) = (0.01f64, 0.3f64);
+    let scene = "[simulation]\nparticle_spacing = 0.01\nend_time = 3.0\nmax_dt = 0.002\nmax_density_error = 0.001\n\
+                 [[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.01\n\
+                 [[fluid]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.12] }\nfractions = { water = 1.0 }\n\
+                 [[wall]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.4, 0.12] }\ncontainer = true\n";
+    let mut sim = Simulation::new(common::scene_text(scene));
+    let y_start = sim.fluid.y.iter().map(|&y| f64::from(y)).sum::<f64>() / sim.fluid.len() as f64;
+    let mut seen = Vec::new();
+    for t in [0.5, 1.0, 2.0, 3.0] {
+        common::run_until(&mut sim, t);
+        let r = at_rest(&sim, fill, d, y_start);
+        println!(
+            "tank at rest, t = {t} s: RMS speed {:.4} m/s (median {:.4}), pressure error per particle {:.2} %, \
+             slope {:+.2} % off rho g, centre of mass settled {:.3} mm",
+            r.rms,
+            r.median,
+            100.0 * r.pressure_error,
+            100.0 * r.slope_error,
+            1e3 * r.settled
+        );
+        seen.push((t, r));
+    }
+    let at = |t: f64| &seen.iter().find(|(s, _)| *s == t).expect("sampled").1;
+    assert!(at(1.0).rms <= 5e-3 && at(3.0).rms <= 1e-3, "RMS speed {:.4} / {:.4} m/s", at(1.0).rms, at(3.0).rms);
+    assert!(at(1.0).pressure_error <= 0.02 && at(1.0).slope_error.abs() <= 0.01);
+}
