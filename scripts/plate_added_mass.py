@@ -89,13 +89,22 @@ def strip(b, t, h, box):
     return 2 * T / (RHO * np.pi * b * b / 4)
 
 
+# tests/deformable.rs's plate: length, thickness, width, m.
+L, HP, B = 0.4, 0.04, 0.16
+
+
+def plate_in_tank(far=1.0):
+    """The tank [-0.06, 0.52] x [-0.16, 0.20] x [-0.12, 0.28] m (`far` moves
+    the walls other than the clamp's out by that factor) and the mask of the
+    plate's cells, its clamped part from the tank wall at x = -0.06 m to 0."""
+    lo = [-0.06, -0.16 * far, -0.12 * far]
+    hi = [L + 0.12 * far, HP + 0.16 * far, B + 0.12 * far]
+    return lo, hi, lambda X, Y, Z: (X < L) & (Y > 0) & (Y < HP) & (Z > 0) & (Z < B)
+
+
 def plate(h, far=1.0):
-    """(C, frequency ratio) of tests/deformable.rs's plate: L = 0.4 m,
-    thickness 0.04 m, width 0.16 m, clamped at x = 0 (the tank wall at
-    x = -0.06 m, where the plate's clamped part starts), in the tank
-    [-0.06, 0.52] x [-0.16, 0.20] x [-0.12, 0.28] m (`far` moves the walls
-    other than the clamp's out by that factor)."""
-    L, Hp, B = 0.4, 0.04, 0.16
+    """(C, frequency ratio) of the plate clamped at x = 0 moving in its first
+    bending mode, in `plate_in_tank(far)`."""
     kl = 1.875
     k = kl / L
     a = (np.cos(kl) + np.cosh(kl)) / (np.sin(kl) + np.sinh(kl))
@@ -103,13 +112,12 @@ def plate(h, far=1.0):
     def shape(x):
         return (np.cos(k * x) - np.cosh(k * x)) - a * (np.sin(k * x) - np.sinh(k * x))
 
-    lo = [-0.06, -0.16 * far, -0.12 * far]
-    hi = [L + 0.12 * far, Hp + 0.16 * far, B + 0.12 * far]
-    T = kinetic_energy(lo, hi, h, lambda X, Y, Z: (X < L) & (Y > 0) & (Y < Hp) & (Z > 0) & (Z < B),
+    lo, hi, body = plate_in_tank(far)
+    T = kinetic_energy(lo, hi, h, body,
                        lambda X, Y, Z: (0 * X, np.where(X > 0, shape(np.maximum(X, 0)) / shape(L), 0.0), 0 * X))
     xs = (np.arange(4000) + 0.5) * L / 4000
     modal = np.sum((shape(xs) / shape(L)) ** 2) * L / 4000
-    m_plate = RHO * Hp * B * modal
+    m_plate = RHO * HP * B * modal
     m_added = 2 * T
     return m_added / (RHO * np.pi * B * B / 4 * modal), np.sqrt(m_plate / (m_plate + m_added))
 
@@ -118,11 +126,8 @@ def rigid(h):
     """Added mass (kg) of the whole plate, clamped part included, translated
     rigidly across its thickness in the same tank: the fluid-side check of
     tests/deformable.rs's added-mass doc (a kinematic plate, no bending)."""
-    L, Hp, B = 0.4, 0.04, 0.16
-    lo, hi = [-0.06, -0.16, -0.12], [L + 0.12, Hp + 0.16, B + 0.12]
-    T = kinetic_energy(lo, hi, h, lambda X, Y, Z: (X < L) & (Y > 0) & (Y < Hp) & (Z > 0) & (Z < B),
-                       lambda X, Y, Z: (0 * X, 1.0 + 0 * X, 0 * X))
-    return 2 * T
+    lo, hi, body = plate_in_tank()
+    return 2 * kinetic_energy(lo, hi, h, body, lambda X, Y, Z: (0 * X, 1.0 + 0 * X, 0 * X))
 
 
 if __name__ == "__main__":

@@ -118,39 +118,39 @@ fn at_rest(sim: &Simulation, fill: f64, d: f64, y_start: f64) -> AtRest {
 /// p = rho g (H - y) with H the fill height.
 ///
 /// FAILS today (2026-12-02): RMS 0.052 m/s at 1 s and 0.028 m/s at 3 s,
-/// pressure error 6.5 % and 4.3 %, slope +2.2 % and +2.3 % off (+0.1 % at
-/// 2 s: it wanders with the motion).
-/// What the motion does not come from, each measured with this set-up up to
-/// 0.5-1 s: the solver's tolerance (RMS 0.065 m/s at 0.5 s at 1e-3, 1e-4 and
-/// 1e-5, the last with 500 iterations per step and converged), the time
-/// step (0.5 ms: 0.066), the start-up (pressure initialised to rho g depth,
-/// or 200 steps with the velocities zeroed each step before the clock
-/// starts: 0.065 and 0.060 m/s 0.1 s later), the free surface (the tank
-/// filled to its lid: 0.060 / 0.052 m/s at 0.1 / 1 s). Where the energy
-/// comes from: the fluid's centre of mass drops 0.62 mm in the first 0.1 s
-/// and 0.90 mm by 1 s, releasing 6.1e-3 and 8.8e-3 J/kg, three to six times
-/// the kinetic energy then (1.8e-3, 1.3e-3 J/kg); with 1 Pa s, which damps
-/// the motion (4.9 mm/s at 1 s), it still drops 1.03 mm. So the column
-/// settles into a denser state whatever the solver does, and mostly in its
-/// bulk, not at its walls: in a box 0.05 m from the floor, the surface and
-/// the x walls and 0.03 m from the z walls the number of particles grows by 0.67 %
-/// by 1 s (2400 to 2416) while their SPH density stays at 1001.08 kg/m^3
-/// (0.108 %, the tolerance); the layer next to each wall moves only
-/// 0.04-0.18 mm closer to it. In a tank twice as wide and twice as long
-/// (0.6 x 0.3 x 0.24 m) the walls' layers move 0.02-0.09 mm, the core's
-/// count grows by 0.50 % by 0.5 s (18000 to 18090) at 1001.11 kg/m^3, the
-/// centre of mass drops 0.65 mm, and the RMS speed is the same, 0.062 m/s
-/// at 0.5 s. So the fluid packs 0.5-0.7 % denser at the same SPH density,
-/// and the potential energy the column releases is the motion. Why it can,
-/// in part: at the same number density an FCC packing's kernel sum is
-/// 0.25 % below the cubic lattice's (BCC 0.02 %; `scripts/kernel_sums.py`), so a
-/// rearrangement from the start lattice towards close packing lets the
-/// density rule hold more particles per volume (uncorrelated jitter does
-/// the opposite: +0.65 % at 0.05 d RMS); that is about half of what is
-/// measured, the rest is not yet accounted for. The next step: start from a
-/// packing that is already at the discrete equilibrium (a relaxed initial
-/// state) rather than from the cubic lattice, or a density estimate that
-/// depends less on the arrangement.
+/// pressure error 6.5 % and 4.3 %, slope +2.2 % and +2.3 % off (+0.1 % at 2
+/// s: it wanders with the motion). What the motion does not come from, each
+/// measured with this set-up up to 0.5-1 s: the solver's tolerance (RMS
+/// 0.065 m/s at 0.5 s at 1e-3, 1e-4 and 1e-5, the last with 500 iterations
+/// per step and converged), the time step (0.5 ms: 0.066), the start-up
+/// (pressure initialised to rho g depth, or 200 steps with the velocities
+/// zeroed each step before the clock starts: 0.065 and 0.060 m/s 0.1 s
+/// later), the free surface (the tank filled to its lid: 0.060 / 0.052 m/s
+/// at 0.1 / 1 s). Where the energy comes from: the fluid's centre of mass
+/// drops 0.62 mm in the first 0.1 s and 0.90 mm by 1 s, releasing 6.1e-3
+/// and 8.8e-3 J/kg, three to six times the kinetic energy then (1.8e-3,
+/// 1.3e-3 J/kg); with 1 Pa s, which damps the motion (4.9 mm/s at 1 s), it
+/// still drops 1.03 mm. So the column settles into a denser state whatever
+/// the solver does, and mostly in its bulk, not at its walls: in a box 0.05
+/// m from the floor, the surface and the x walls and 0.03 m from the z
+/// walls the number of particles grows by 0.67 % by 1 s (2400 to 2416)
+/// while their SPH density stays at 1001.08 kg/m^3 (0.108 %, the
+/// tolerance); the layer next to each wall moves only 0.04-0.18 mm closer
+/// to it. In a tank twice as wide and twice as long (0.6 x 0.3 x 0.24 m)
+/// the walls' layers move 0.02-0.09 mm, the core's count grows by 0.50 % by
+/// 0.5 s (18000 to 18090) at 1001.11 kg/m^3, the centre of mass drops 0.65
+/// mm, and the RMS speed is the same, 0.062 m/s at 0.5 s. So the fluid
+/// packs 0.5-0.7 % denser at the same SPH density, and the potential energy
+/// the column releases is the motion. Why it can, in part: at the same
+/// number density an FCC packing's kernel sum is 0.25 % below the cubic
+/// lattice's (BCC 0.02 %; `scripts/kernel_sums.py`), so a rearrangement
+/// from the start lattice towards close packing lets the density rule hold
+/// more particles per volume (uncorrelated jitter does the opposite: +0.65
+/// % at 0.05 d RMS); that is about half of what is measured, the rest is
+/// not yet accounted for. The next step: start from a packing that is
+/// already at the discrete equilibrium (a relaxed initial state) rather
+/// than from the cubic lattice, or a density estimate that depends less on
+/// the arrangement.
 #[test]
 #[ignore = "fails today (see its doc): 3 s of a 10.8k-particle tank, about 2 min on 2 cores"]
 fn tank_at_rest_per_particle() {
