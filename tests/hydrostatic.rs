@@ -165,9 +165,10 @@ fn at_rest(sim: &Simulation, fill: f64, d: f64, y_start: f64) -> AtRest {
 /// 1/d there, and times a pressure of rho g depth it is half of g. On the
 /// start lattice that sum is zero, but no lattice holds: a linear model of
 /// the kernel sum's second variation on density-preserving Bloch modes (H
-/// = 2d) has negative curvature for the cubic, BCC and FCC lattices, so
-/// pressure drives any of them to a disordered packing (the measured
-/// compaction) and keeps its particles moving. Not a cure, each measured
+/// = 2d; `scripts/lattice_stability.py`) has negative curvature for the
+/// cubic, BCC and FCC lattices, so pressure drives any of them to a
+/// disordered packing (the measured compaction) and keeps its particles
+/// moving. Not a cure, each measured
 /// here: a larger support (H = 2.2 d: RMS 0.073 m/s at 1 s; 2.4 d: 0.060),
 /// a tighter solve after the fact (switching 1e-3 to 1e-4 or 1e-5 at 1 s
 /// removes the 0.11 % compression in one step at 0.10 m/s and overshoots
