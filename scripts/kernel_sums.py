@@ -13,16 +13,20 @@ Measured 2026-12-02: cubic 0.99997, BCC 0.99974, FCC 0.99749; jitter of
     python3 scripts/kernel_sums.py        # needs numpy, scipy
 """
 import numpy as np
-from scipy.spatial import cKDTree
 
 H = 2.0  # support, in spacings
 K = 8 / (np.pi * H**3)
 
 
-def kernel(r):
+def pieces(r):
+    """q = r / H, zeros like q, and the masks of the inner (q <= 1/2) and
+    outer (1/2 < q <= 1) pieces of the spline."""
     q = r / H
-    w = np.zeros_like(q)
-    a, b = q <= 0.5, (q > 0.5) & (q <= 1)
+    return q, np.zeros_like(q), q <= 0.5, (q > 0.5) & (q <= 1)
+
+
+def kernel(r):
+    q, w, a, b = pieces(r)
     w[a] = K * (6 * q[a] ** 3 - 6 * q[a] ** 2 + 1)
     w[b] = 2 * K * (1 - q[b]) ** 3
     return w
@@ -39,6 +43,8 @@ def lattice_sum(basis, a):
 
 def jittered_sum(amp, n=24, seed=1):
     """Mean kernel sum of the cubic lattice with Gaussian jitter `amp` (in d)."""
+    from scipy.spatial import cKDTree
+
     g = np.arange(n, dtype=float)
     x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
     p = (x + amp * np.random.default_rng(seed).standard_normal(x.shape)) % n

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Linear stability of particle lattices under the symmetric SPH pressure
-force at positive pressure, for the cubic spline of support H = 2d (the one
-porosph uses, PHYSICS.md §1). The evidence behind tests/hydrostatic.rs's
+force at positive pressure, for the cubic spline of scripts/kernel_sums.py
+(support H = 2d, PHYSICS.md §1). The evidence behind tests/hydrostatic.rs's
 `tank_at_rest_per_particle` doc.
 
 Model: at uniform pressure p the symmetric pressure force is the gradient
@@ -20,23 +20,18 @@ Measured 2026-12-02: cubic -2.7e-1, BCC -2.1e-1, FCC -2.4e-2 (all unstable).
 """
 import numpy as np
 
-H = 2.0  # support, in spacings
-K = 8 / (np.pi * H**3)
+from kernel_sums import H, K, pieces
 
 
 def dw(r):
-    q = r / H
-    d = np.zeros_like(q)
-    a, b = q <= 0.5, (q > 0.5) & (q <= 1)
+    q, d, a, b = pieces(r)
     d[a] = K * (18 * q[a] ** 2 - 12 * q[a]) / H
     d[b] = -6 * K * (1 - q[b]) ** 2 / H
     return d
 
 
 def d2w(r):
-    q = r / H
-    d = np.zeros_like(q)
-    a, b = q <= 0.5, (q > 0.5) & (q <= 1)
+    q, d, a, b = pieces(r)
     d[a] = K * (36 * q[a] - 12) / H**2
     d[b] = 12 * K * (1 - q[b]) / H**2
     return d
