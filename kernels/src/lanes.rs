@@ -4,8 +4,8 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-/// Number of f32 lanes in [`F`]: 16 (one AVX-512 register with the project's
-/// `target-cpu=x86-64-v4`; two AVX2 registers otherwise).
+/// Number of f32 lanes in [`F`]: 16 (one AVX-512 register where the build's
+/// `target-cpu=native` has AVX-512; two AVX2 registers otherwise).
 pub const LANES: usize = 16;
 
 /// The SIMD lane type of the neighbour loops.
