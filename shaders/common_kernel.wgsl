@@ -1,6 +1,6 @@
 // Shared WGSL, prepended to the shaders that list it in SHADERS
 // (src/backend/gpu/mod.rs; WGSL has no include): the cubic spline gradient
-// (kernels/src/cubic_spline.rs) and the pair gradient g_ij = Vbar_ij grad W_ij
+// (kernels/src/kernel.rs) and the pair gradient g_ij = Vbar_ij grad W_ij
 // recomputed from positions and current volumes.
 //
 // Convention: the shader that gets this file declares its uniform
@@ -9,7 +9,7 @@
 // DriftParams do (WGSL resolves module-scope names in any order). It must
 // not declare grad_over_r, harmonic_volumes or pair_gradient itself.
 
-// W'(r)/r of the cubic spline, 1/m^5 (cubic_spline.rs grad_over_r).
+// W'(r)/r of the cubic spline, 1/m^5 (kernel.rs grad_over_r, the cubic spline shape; the GPU passes run only with it).
 fn grad_over_r(r: f32) -> f32 {
     let q = r * P.inv_support;
     let inner = P.kernel_l * (3.0 * q - 2.0) * P.inv_support;

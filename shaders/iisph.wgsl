@@ -24,7 +24,7 @@ struct IisphParams {
     n_active: u32,
     min_iterations: u32,
     max_iterations: u32,
-    // Kernel support H, m; 1/H; 8/(pi H^3); 48/(pi H^4) (kernels/src/cubic_spline.rs).
+    // Kernel support H, m; 1/H; 8/(pi H^3); 48/(pi H^4) (kernels/src/kernel.rs).
     support: f32,
     inv_support: f32,
     kernel_k: f32,

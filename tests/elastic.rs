@@ -8,8 +8,8 @@ mod common;
 use glam::{Mat3, Quat, Vec3};
 use porosph::io::ArrayData;
 use porosph::pipeline::Simulation;
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::{deform, forces, stress_rl, Deformation, Lame, RestState};
+use porosph_kernels::kernel::Kernel;
 
 /// A lattice block of `n` particles per axis, spacing `d`, corner at the origin.
 fn block(n: [usize; 3], d: f32) -> Vec<Vec3> {
@@ -37,7 +37,7 @@ struct Elastic {
 impl Elastic {
     fn new(x0: &[Vec3], d: f32, lame: Lame) -> Self {
         let n = x0.len();
-        let rest = RestState::new(x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &CubicSpline::new(2.0 * d));
+        let rest = RestState::new(x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &Kernel::new(2.0 * d));
         Elastic {
             rest,
             rot: vec![Quat::IDENTITY; n],

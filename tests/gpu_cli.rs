@@ -1,5 +1,6 @@
 //! `--backend` on the command line: a clear error, not a panic, when
-//! `--backend gpu` finds no adapter, and when a pass cannot go to the GPU.
+//! `--backend gpu` finds no adapter, when a pass cannot go to the GPU, and
+//! when the scene's kernel is one the GPU passes do not implement.
 
 use std::process::Command;
 
@@ -32,4 +33,20 @@ fn unknown_backend_and_gpu_pass_are_rejected() {
     assert!(!ok && err.contains("unknown backend `cuda`"), "{err}");
     let (ok, err) = porosph(&["run", "--backend", "gpu", "--gpu-passes", "viscosity", "--steps", "1"], &[]);
     assert!(!ok && err.contains("`viscosity` is not a pass the GPU backend runs"), "{err}");
+}
+
+#[test]
+fn backend_gpu_with_the_wendland_kernel_is_a_clear_error() {
+    let dir = std::env::temp_dir().join(format!("porosph_gpu_cli_wendland_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("wendland.toml");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/hydrostatic.toml")).unwrap();
+    std::fs::write(&scene, text.replace("[simulation]\n", "[simulation]\nkernel = \"wendland_c2\"\n")).unwrap();
+    let out = dir.join("out");
+    let (scene, out) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    let (ok, err) = porosph(&["run", scene, "--backend", "gpu", "--steps", "1", "--quiet", "--out", out], &[]);
+    assert!(!ok && err.contains("cubic spline kernel only") && err.contains("--backend cpu"), "{err}");
+    let (ok, err) = porosph(&["run", scene, "--steps", "1", "--quiet", "--out", out], &[]);
+    assert!(ok, "the CPU runs it: {err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

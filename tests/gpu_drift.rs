@@ -24,10 +24,10 @@ mod gpu_common;
 use porosph::backend::gpu::{DriftInput, DriftOutput, PorousDriftInput};
 use porosph::backend::GpuPasses;
 use porosph_kernels::blocks::BLOCK;
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Vel, VelMut};
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
 use porosph_kernels::porous;
@@ -64,7 +64,7 @@ struct Case {
 fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
     let h = 0.01f32;
     let support = 2.0 * h;
-    let kernel = CubicSpline::new(support);
+    let kernel = Kernel::new(support);
     let mut rng = Rng(seed);
     let mut f: [Vec<f32>; 3] = Default::default();
     for i in 0..nx {

@@ -23,9 +23,9 @@ mod gpu_common;
 
 use porosph::backend::gpu::{GpuContext, IisphGpu, RangesGpu, SolveInput, SolveOutput, SolveSettings, WallInput};
 use porosph_kernels::blocks::{nblocks, sum_f64};
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows};
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
 use gpu_common::Rng;
@@ -78,7 +78,7 @@ fn points(x: &[Vec<f32>; 3]) -> Points<'_> {
 fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
     let h = 0.01f32;
     let support = 2.0 * h;
-    let kernel = CubicSpline::new(support);
+    let kernel = Kernel::new(support);
     let mut rng = Rng(seed);
     let mut f: [Vec<f32>; 3] = Default::default();
     for i in 0..nx {

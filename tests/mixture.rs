@@ -8,7 +8,7 @@
 mod common;
 
 use porosph::pipeline::Simulation;
-use porosph_kernels::cubic_spline::CubicSpline;
+use porosph_kernels::kernel::Kernel;
 
 /// Largest |sum_k alpha_k - 1| and smallest alpha over the fluid.
 fn fraction_errors(sim: &Simulation) -> (f32, f32) {
@@ -129,7 +129,7 @@ container = true
 /// continuum value is 1, an unbounded lattice gives 1.0201, this narrow box
 /// 0.913.
 fn cross_plane_factor(nx: i32, nz: i32) -> f64 {
-    let kernel = CubicSpline::new(2.0);
+    let kernel = Kernel::new(2.0);
     let mut sum = 0.0f64;
     for ix in 0..nx {
         for iz in 0..nz {

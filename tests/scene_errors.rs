@@ -1,7 +1,7 @@
 //! Bad scene files: each is rejected with the key at fault and a reason that
 //! says what was expected; no input makes the parser panic.
 
-use porosph::scene::{DriftMomentum, PhasePressure, PhaseTransport, Scene, SceneError, Shape};
+use porosph::scene::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene, SceneError, Shape};
 use std::path::Path;
 
 /// A valid scene that exercises every key.
@@ -20,6 +20,7 @@ omega = 0.7
 drift_tau = 2e-5
 drift_sigma = 5e-4
 drift_momentum = "plus"
+kernel = "wendland_c2"
 phase_transport = "reference"
 phase_pressure = "fraction"
 
@@ -116,6 +117,7 @@ fn full_scene_parses_with_its_values() {
     assert_eq!(sim.drift_tau, 2e-5);
     assert_eq!(sim.drift_sigma, 5e-4);
     assert_eq!(sim.drift_momentum, DriftMomentum::Plus);
+    assert_eq!(sim.kernel, KernelChoice::WendlandC2);
     assert_eq!(sim.phase_transport, PhaseTransport::Reference);
     assert_eq!(sim.phase_pressure, PhasePressure::Fraction);
 
@@ -163,6 +165,7 @@ fn minimal_scene_gets_the_defaults() {
     assert_eq!(sim.drift_tau, 3e-6, "P Table 2");
     assert_eq!(sim.drift_sigma, 1e-3, "P Table 2");
     assert_eq!(sim.drift_momentum, DriftMomentum::Physical);
+    assert_eq!(sim.kernel, KernelChoice::CubicSpline);
     assert_eq!(sim.phase_transport, PhaseTransport::Conservative);
     assert_eq!(sim.phase_pressure, PhasePressure::Shared);
     assert_eq!((scene.phases[0].drift_tau, scene.phases[0].drift_sigma), (3e-6, 1e-3));
@@ -354,6 +357,7 @@ fn bad_mixture_settings() {
         ("drift_momentum = \"physcal\"", "simulation.drift_momentum", "(did you mean \"physical\"?)"),
         ("drift_momentum = true", "simulation.drift_momentum", "one of \"physical\", \"plus\", \"off\" (a string)"),
         ("phase_transport = \"exact\"", "simulation.phase_transport", "one of \"conservative\", \"reference\""),
+        ("kernel = \"wendland\"", "simulation.kernel", "one of \"cubic_spline\", \"wendland_c2\""),
         ("phase_pressure = 1", "simulation.phase_pressure", "found the integer 1"),
     ];
     for (line, key, fragment) in cases {

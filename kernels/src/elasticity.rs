@@ -17,7 +17,7 @@
 //! matrix per particle does not fit the SIMD pair layout of the fluid.
 
 use crate::blocks::{nblocks, sum_f64, BLOCK};
-use crate::cubic_spline::CubicSpline;
+use crate::kernel::Kernel;
 use glam::{Mat3, Quat, Vec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -76,7 +76,7 @@ impl RestState {
     /// rest positions `x0` with bodies `body` and masses `mass`. Pairs
     /// within a body closer than the support H; a deterministic cell grid
     /// (neighbours sorted by index).
-    pub fn new(x0: &[Vec3], body: &[u32], mass: &[f32], kernel: &CubicSpline) -> RestState {
+    pub fn new(x0: &[Vec3], body: &[u32], mass: &[f32], kernel: &Kernel) -> RestState {
         let n = x0.len();
         let h = kernel.support;
         let cell =
@@ -453,7 +453,7 @@ mod tests {
         let d = 0.01;
         let x0 = block([6, 6, 6], d);
         let n = x0.len();
-        let rest = RestState::new(&x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &CubicSpline::new(2.0 * d));
+        let rest = RestState::new(&x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &Kernel::new(2.0 * d));
         for i in 0..n {
             let mut c = Mat3::ZERO;
             for p in rest.range(i) {

@@ -4,13 +4,13 @@
 //! lanes ([`lanes::F`]); results do not depend on the number of threads.
 
 pub mod blocks;
-pub mod cubic_spline;
 pub mod drift;
 pub mod drift_momentum;
 pub mod elasticity;
 pub mod grid;
 pub mod iisph;
 pub mod integrate;
+pub mod kernel;
 pub mod lanes;
 pub mod neighbors;
 pub mod phase_transport;

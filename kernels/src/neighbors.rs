@@ -7,8 +7,8 @@
 //! and the result does not depend on the number of threads.
 
 use crate::blocks::BLOCK;
-use crate::cubic_spline::CubicSpline;
 use crate::grid::{cell_of, morton, CellGrid};
+use crate::kernel::Kernel;
 use crate::lanes::{load, load_partial, store, F, LANES};
 use rayon::prelude::*;
 
@@ -157,7 +157,7 @@ pub fn build_pairs(
     target: Points,
     grid: &CellGrid,
     near: Option<&CellGrid>,
-    kernel: &CubicSpline,
+    kernel: &Kernel,
 ) {
     let n = query.len();
     let nblocks = n.div_ceil(BLOCK);

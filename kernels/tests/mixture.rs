@@ -5,10 +5,10 @@
 //! phase pair weights of the viscosity are exactly 1 for one phase.
 
 use porosph_kernels::blocks::BLOCK;
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::Vel;
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 use porosph_kernels::phase_transport::{correct, correction_sums, outflow_limit, pair_limit, transport};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel, VelMut};
@@ -56,7 +56,7 @@ fn lattice(n: usize, rng: &mut Lcg) -> Lattice {
     g.build(&sk, h);
     let mut ff = PairLists::default();
     let pt = Points { x: &x, y: &y, z: &z };
-    build_pairs(&mut ff, pt, pt, &g, None, &CubicSpline::new(h));
+    build_pairs(&mut ff, pt, pt, &g, None, &Kernel::new(h));
     Lattice { x, y, z, ff }
 }
 

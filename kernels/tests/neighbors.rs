@@ -1,7 +1,7 @@
 //! Neighbour search against brute force.
 
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::grid::CellGrid;
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
 struct Lcg(u64);
@@ -45,7 +45,7 @@ fn pairs_of(l: &PairLists) -> Vec<Vec<u32>> {
 #[test]
 fn random_sets_match_brute_force() {
     let h = 0.05;
-    let kernel = CubicSpline::new(h);
+    let kernel = Kernel::new(h);
     let mut rng = Lcg(7);
     for (n, extent, offset) in [(3000usize, 0.5f32, 0.0f32), (2000, 0.3, -0.17), (1500, 2.0, -1.0)] {
         let pts: Vec<[f32; 3]> = (0..n)
@@ -90,7 +90,7 @@ fn random_sets_match_brute_force() {
 #[test]
 fn pairs_at_the_support_radius() {
     let h = 0.25; // exactly representable
-    let kernel = CubicSpline::new(h);
+    let kernel = Kernel::new(h);
     for axis in 0..3 {
         for (dist, expect) in [(0.9999 * h, true), (h, false), (1.0001 * h, false)] {
             for base in [0.0f32, 0.1, -0.37] {

@@ -25,9 +25,9 @@ pub use timing::{PassTimes, PASSES};
 use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::Lame;
 use porosph_kernels::grid::CellGrid;
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::PairLists;
 
 /// Parameters derived from the scene, in SI units.
@@ -36,7 +36,7 @@ pub struct Params {
     /// Particle spacing h = d, m (PHYSICS.md §1).
     pub h: f32,
     /// Kernel support H = 2h, m.
-    pub kernel: CubicSpline,
+    pub kernel: Kernel,
     /// Gravity, m/s^2.
     pub gravity: [f32; 3],
     /// Upper bound of dt, s.

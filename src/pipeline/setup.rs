@@ -3,12 +3,14 @@
 
 use super::solid::{Peer2018, SolidModel};
 use super::{Params, Simulation, StepStats, Workspace};
-use crate::scene::{sample_fluid, sample_solids, sample_walls, DriftMomentum, PhasePressure, PhaseTransport, Scene};
+use crate::scene::{
+    sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
+};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::Lame;
+use porosph_kernels::kernel::{Kernel, KernelShape};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
 impl Params {
@@ -18,7 +20,13 @@ impl Params {
         let h = s.particle_spacing;
         Self {
             h,
-            kernel: CubicSpline::new(2.0 * h),
+            kernel: Kernel::with_shape(
+                match s.kernel {
+                    KernelChoice::CubicSpline => KernelShape::CubicSpline,
+                    KernelChoice::WendlandC2 => KernelShape::WendlandC2,
+                },
+                2.0 * h,
+            ),
             gravity: s.gravity,
             max_dt: s.max_dt,
             cfl: s.cfl_number,
@@ -295,7 +303,7 @@ pub(super) fn wall_workspace(walls: &mut WallStore, params: &Params) -> Workspac
 /// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of two
 /// lattice layers (its own layer and the one behind it), spacing d = `h`.
 /// About 0.725 for the cubic spline with H = 2d.
-pub fn flat_wall_gamma(kernel: &CubicSpline, h: f32) -> f32 {
+pub fn flat_wall_gamma(kernel: &Kernel, h: f32) -> f32 {
     let mut s = 0.0f64;
     for c in [0i32, -1] {
         for a in -3i32..=3 {

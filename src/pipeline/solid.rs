@@ -12,11 +12,11 @@ use super::Params;
 use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
-use porosph_kernels::cubic_spline::CubicSpline;
 use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
 use porosph_kernels::iisph::{Vel, VelMut};
+use porosph_kernels::kernel::Kernel;
 use rayon::prelude::*;
 
 /// What a solid model did in one step.
@@ -107,7 +107,7 @@ impl Peer2018 {
         group: &[u32],
         rest_mass: &[f32],
         body_lame: &[Lame],
-        kernel: &CubicSpline,
+        kernel: &Kernel,
         tolerance: f32,
         max_iterations: u32,
     ) -> Self {

@@ -114,6 +114,11 @@ pub struct Simulation {
     #[serde(default = "defaults::drift_sigma")]
     #[schemars(range(min = 0))]
     pub drift_sigma: f32,
+    /// The smoothing kernel
+    ///
+    /// Its shape at support H = 2 d (PHYSICS.md §1, kernels/src/kernel.rs).
+    #[serde(default = "defaults::kernel")]
+    pub kernel: KernelChoice,
     /// The drift momentum term
     ///
     /// a^Dm of the mixture (PHYSICS.md §4.1, §8.15).
@@ -165,7 +170,7 @@ pub struct Simulation {
 
 /// The defaults of `[simulation]`.
 mod defaults {
-    use super::{DriftMomentum, PhasePressure, PhaseTransport};
+    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport};
 
     pub fn gravity() -> [f32; 3] {
         [0.0, -9.81, 0.0]
@@ -195,6 +200,9 @@ mod defaults {
     /// P Table 2.
     pub fn drift_sigma() -> f32 {
         1e-3
+    }
+    pub fn kernel() -> KernelChoice {
+        KernelChoice::CubicSpline
     }
     pub fn drift_momentum() -> DriftMomentum {
         DriftMomentum::Physical
@@ -254,6 +262,19 @@ pub enum PhaseTransport {
     /// PHYSICS.md §4.1 write it; each phase's volume drifts through the
     /// correction.
     Reference,
+}
+
+/// `kernel`: the smoothing kernel's shape (kernels/src/kernel.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum KernelChoice {
+    /// `"cubic_spline"` (default): the SPlisHSPlasH form.
+    CubicSpline,
+    /// `"wendland_c2"`: Wendland C2, its lattice sum and gradient
+    /// calibrated on the start lattice; its lattice holds at positive
+    /// pressure, so a fluid at rest moves about three times less (CPU
+    /// backend only).
+    WendlandC2,
 }
 
 /// `drift_momentum`: how the drift momentum term

@@ -56,7 +56,7 @@ pub struct IisphParams {
 
 impl IisphParams {
     /// The parameters of a solve; the kernel constants are computed as
-    /// `CubicSpline::new` computes them.
+    /// `Kernel::new` computes them.
     pub fn new(support: f32, s: &SolveSettings, n_fluid: usize, n_active: usize) -> Self {
         let h = support;
         Self {
