@@ -12,7 +12,7 @@
 //!   C is divided by the lattice sum, so a full fluid particle at the start
 //!   is at rest density with V = d^3 as for the spline, and the gradient by
 //!   the first moment, so a linear pressure field gives its exact gradient
-//!   on the lattice (without it the hydrostatic slope of p is 5-8 % steep).
+//!   on the lattice (without it the tank at rest's slope of p is 6-10 % steep).
 //!
 //! Why the choice matters (tests/hydrostatic.rs `tank_at_rest_per_particle`,
 //! `scripts/lattice_stability.py --kernel`): at positive pressure the
@@ -76,43 +76,65 @@ impl Kernel {
     /// W(r), with q = r / H; 0 beyond the support.
     #[inline(always)]
     pub fn w<R: Real>(&self, r: R) -> R {
-        let q = r * R::splat(self.inv_h);
-        let one = R::splat(1.0);
-        let om = (one - q).max(R::splat(0.0));
         match self.shape {
-            KernelShape::CubicSpline => {
-                let inner = R::splat(self.k) * (R::splat(6.0) * q * q * (q - one) + one);
-                let outer = R::splat(2.0 * self.k) * om * om * om;
-                q.select_le(R::splat(0.5), inner, outer)
-            }
-            KernelShape::WendlandC2 => {
-                let om2 = om * om;
-                R::splat(self.k) * om2 * om2 * (one + R::splat(4.0) * q)
-            }
+            KernelShape::CubicSpline => self.cubic_spline_w(r),
+            KernelShape::WendlandC2 => self.wendland_w(r),
         }
     }
 
     /// W'(r) / r, in 1/m^5, so that grad W_ij = (W'(r)/r) x_ij with
-    /// x_ij = x_i - x_j (PHYSICS.md §0). Cubic spline: W'(r) = l q (3q - 2)
-    /// for q <= 1/2, -l (1-q)^2 for q <= 1. Wendland: W'(r)/r = -l (1-q)^3.
-    /// Both finite at r = 0, so a particle's own term contributes a zero
-    /// gradient; 0 beyond the support.
+    /// x_ij = x_i - x_j (PHYSICS.md §0). Finite at r = 0, so a particle's
+    /// own term contributes a zero gradient; 0 beyond the support.
     #[inline(always)]
     pub fn grad_over_r<R: Real>(&self, r: R) -> R {
-        let q = r * R::splat(self.inv_h);
-        let one = R::splat(1.0);
-        let om = (one - q).max(R::splat(0.0));
         match self.shape {
-            KernelShape::CubicSpline => {
-                let ih = R::splat(self.inv_h);
-                // inner: l q (3q-2) / r = l (3q - 2) / H
-                let inner = R::splat(self.l) * (R::splat(3.0) * q - R::splat(2.0)) * ih;
-                // outer: -l (1-q)^2 / r; r >= H/2 > 0 on this branch
-                let outer = -R::splat(self.l) * om * om / r.max(R::splat(0.5 * self.support));
-                q.select_le(R::splat(0.5), inner, outer)
-            }
-            KernelShape::WendlandC2 => -R::splat(self.l) * om * om * om,
+            KernelShape::CubicSpline => self.cubic_spline_grad_over_r(r),
+            KernelShape::WendlandC2 => self.wendland_grad_over_r(r),
         }
+    }
+
+    /// q = r / H and max(1 - q, 0).
+    #[inline(always)]
+    fn q<R: Real>(&self, r: R) -> (R, R) {
+        let q = r * R::splat(self.inv_h);
+        (q, (R::splat(1.0) - q).max(R::splat(0.0)))
+    }
+
+    /// [`Self::w`] of the cubic spline, for loops that dispatch on the shape
+    /// once outside (the neighbour pass).
+    #[inline(always)]
+    pub fn cubic_spline_w<R: Real>(&self, r: R) -> R {
+        let (q, om) = self.q(r);
+        let inner = R::splat(self.k) * (R::splat(6.0) * q * q * (q - R::splat(1.0)) + R::splat(1.0));
+        let outer = R::splat(2.0 * self.k) * om * om * om;
+        q.select_le(R::splat(0.5), inner, outer)
+    }
+
+    /// [`Self::grad_over_r`] of the cubic spline: W'(r) = l q (3q - 2) for
+    /// q <= 1/2, -l (1-q)^2 for q <= 1.
+    #[inline(always)]
+    pub fn cubic_spline_grad_over_r<R: Real>(&self, r: R) -> R {
+        let (q, om) = self.q(r);
+        // inner: l q (3q-2) / r = l (3q - 2) / H
+        let inner = R::splat(self.l) * (R::splat(3.0) * q - R::splat(2.0)) * R::splat(self.inv_h);
+        // outer: -l (1-q)^2 / r; r >= H/2 > 0 on this branch
+        let outer = -R::splat(self.l) * om * om / r.max(R::splat(0.5 * self.support));
+        q.select_le(R::splat(0.5), inner, outer)
+    }
+
+    /// [`Self::w`] of Wendland C2.
+    #[inline(always)]
+    pub fn wendland_w<R: Real>(&self, r: R) -> R {
+        let (q, om) = self.q(r);
+        let om2 = om * om;
+        R::splat(self.k) * om2 * om2 * (R::splat(1.0) + R::splat(4.0) * q)
+    }
+
+    /// [`Self::grad_over_r`] of Wendland C2: -l (1-q)^3.
+    #[inline(always)]
+    pub fn wendland_grad_over_r<R: Real>(&self, r: R) -> R {
+        let (_, om) = self.q(r);
+        -R::splat(self.l) * om * om * om
     }
 
     /// W(0).

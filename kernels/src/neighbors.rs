@@ -8,7 +8,7 @@
 
 use crate::blocks::BLOCK;
 use crate::grid::{cell_of, morton, CellGrid};
-use crate::kernel::Kernel;
+use crate::kernel::{Kernel, KernelShape};
 use crate::lanes::{load, load_partial, store, F, LANES};
 use rayon::prelude::*;
 
@@ -216,24 +216,39 @@ pub fn build_pairs(
                 blk.gz.push(0.0);
             }
             blk.w.resize(blk.j.len(), 0.0);
-            // Pass 2: kernel values and gradients of the real pairs, a
-            // whole vector at a time (padding lanes stay 0).
-            let mut k = first;
-            while k < blk.j.len() {
-                let (dx, dy, dz) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
-                let r = (dx * dx + dy * dy + dz * dz).sqrt();
-                let valid = (real + first).saturating_sub(k).min(LANES);
-                let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < valid { 1.0 } else { 0.0 }));
-                let g = kernel.grad_over_r(r) * keep;
-                store(&mut blk.w, k, kernel.w(r) * keep);
-                store(&mut blk.gx, k, g * dx);
-                store(&mut blk.gy, k, g * dy);
-                store(&mut blk.gz, k, g * dz);
-                k += LANES;
+            // Pass 2, the shape chosen once per query, not per vector.
+            match kernel.shape {
+                KernelShape::CubicSpline => {
+                    kernel_values(blk, first, real, |r| (kernel.cubic_spline_w(r), kernel.cubic_spline_grad_over_r(r)))
+                }
+                KernelShape::WendlandC2 => {
+                    kernel_values(blk, first, real, |r| (kernel.wendland_w(r), kernel.wendland_grad_over_r(r)))
+                }
             }
             blk.start.push(blk.j.len() as u32);
         }
     });
+}
+
+/// Pass 2 of [`build_pairs`] for one query: kernel values and gradients
+/// (`wg` gives W and W'/r) of its `real` pairs from `first`, a whole
+/// vector at a time (padding lanes stay 0).
+#[inline(always)]
+fn kernel_values(blk: &mut PairBlock, first: usize, real: usize, wg: impl Fn(F) -> (F, F)) {
+    let mut k = first;
+    while k < blk.j.len() {
+        let (dx, dy, dz) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+        let r = (dx * dx + dy * dy + dz * dz).sqrt();
+        let valid = (real + first).saturating_sub(k).min(LANES);
+        let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < valid { 1.0 } else { 0.0 }));
+        let (w, g) = wg(r);
+        let g = g * keep;
+        store(&mut blk.w, k, w * keep);
+        store(&mut blk.gx, k, g * dx);
+        store(&mut blk.gy, k, g * dy);
+        store(&mut blk.gz, k, g * dz);
+        k += LANES;
+    }
 }
 
 /// Sorts the ranges by start and joins ranges that touch (in Morton order,
