@@ -19,42 +19,70 @@ fn pressure_is_rho_g_depth_after_one_second() {
     let target = scene.simulation.max_density_error;
     let max_it = scene.simulation.max_iterations;
     let mut sim = Simulation::new(scene);
+    // The tank is not at rest (the lattice start relaxes; issue 15 and
+    // `tank_at_rest_per_particle`), so the deep pressure fluctuates from
+    // step to step: its mean moved by about +-5 % between steps around
+    // t = 1 s. A single snapshot is then a draw from that spread, and which
+    // draw depends on rounding: the same code built for AVX-512 and for
+    // AVX2 (lane sums in another order) agreed to 1e-6 after one step but
+    // ended at 0.8 % and 4.8 % at t = 1 s. The hydrostatic pressure is the
+    // time mean, so the test averages the deep particles' pressure and
+    // reference over every step of the last 0.2 s.
+    let mut worst = 0.0f32;
+    let deep_sums = |sim: &Simulation| {
+        let f = &sim.fluid;
+        let (mut n, mut sp, mut sref, mut sabs) = (0usize, 0.0f64, 0.0f64, 0.0f64);
+        for i in (0..f.len()).filter(|&i| f.y[i] < fill - 2.0 * d) {
+            let p_ref = (rho0 * g * (fill - f.y[i])) as f64;
+            n += 1;
+            sp += f.pressure[i] as f64;
+            sref += p_ref;
+            sabs += (f.pressure[i] as f64 - p_ref).abs();
+        }
+        (n, sp, sref, sabs)
+    };
+    let (mut steps, mut sp, mut sref, mut sabs) = (0usize, 0.0f64, 0.0f64, 0.0f64);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut n_deep, mut n_sum) = (usize::MAX, 0usize);
     // The solver must reach its target in every step, never stopping at
     // the iteration cap.
-    let mut worst = 0.0f32;
     while sim.time < 1.0 - 1e-9 {
         let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
         assert!(st.iterations < max_it, "pressure solve hit the iteration cap at t = {}", sim.time);
         worst = worst.max(st.density_error);
+        if sim.time > 0.8 + 1e-9 {
+            let (n, p, r, a) = deep_sums(&sim);
+            assert!(n > sim.fluid.len() / 2);
+            n_deep = n_deep.min(n);
+            n_sum += n;
+            steps += 1;
+            sp += p;
+            sref += r;
+            sabs += a;
+            lo = lo.min(p / r - 1.0);
+            hi = hi.max(p / r - 1.0);
+        }
     }
     assert!(worst <= target);
+    assert!(steps >= 50, "only {steps} steps in the averaging window");
 
     let f = &sim.fluid;
-    // Particles below the top two layers of the fill.
-    let deep: Vec<usize> = (0..f.len()).filter(|&i| f.y[i] < fill - 2.0 * d).collect();
-    assert!(deep.len() > f.len() / 2);
     // Mean density error as IISPH measures it (SPlisHSPlasH's
     // avg_density_err): the mean compression max(rho/rho0 - 1, 0) over all
-    // fluid particles, here from the densities after the step.
+    // fluid particles, here from the densities after the last step.
     let density_err = (0..f.len()).map(|i| (f.density[i] / rho0 - 1.0).max(0.0) as f64).sum::<f64>() / f.len() as f64;
-    let (mut sp, mut sref, mut sabs) = (0.0f64, 0.0f64, 0.0f64);
-    for &i in &deep {
-        let p_ref = (rho0 * g * (fill - f.y[i])) as f64;
-        sp += f.pressure[i] as f64;
-        sref += p_ref;
-        sabs += (f.pressure[i] as f64 - p_ref).abs();
-    }
-    let n = deep.len() as f64;
     let mean_err = (sp - sref).abs() / sref;
     let mean_abs_err = sabs / sref;
     println!(
-        "hydrostatic: {} particles below the top two layers; mean pressure {:.1} Pa vs rho g depth {:.1} Pa: \
-         relative error of the mean {:.4}, mean absolute error / mean reference {:.4}; mean compression max(rho/rho0 - 1, 0) = {:.5}; \
+        "hydrostatic: {steps} steps in 0.8 s < t <= 1 s, at least {n_deep} particles below the top two layers; \
+         time-mean pressure {:.1} Pa vs rho g depth {:.1} Pa: relative error of the mean {:.4} (single steps {:+.4} to {:+.4}), \
+         mean absolute error / mean reference {:.4}; mean compression max(rho/rho0 - 1, 0) = {:.5}; \
          solver: {} iterations, predicted error {:.5} (worst over all steps {:.5}); max speed {:.2e} m/s",
-        deep.len(),
-        sp / n,
-        sref / n,
+        sp / n_sum as f64,
+        sref / n_sum as f64,
         mean_err,
+        lo,
+        hi,
         mean_abs_err,
         density_err,
         sim.last.iterations,
