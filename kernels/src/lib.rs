@@ -5,6 +5,7 @@
 
 pub mod blocks;
 pub mod drift;
+pub mod drucker_prager;
 pub mod drift_momentum;
 pub mod elasticity;
 pub mod grid;
