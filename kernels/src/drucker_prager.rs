@@ -163,11 +163,8 @@ mod tests {
     #[test]
     fn a_returned_state_is_on_the_surface_and_stays_there() {
         let dp = DruckerPrager::compression_cone(35.0 * DEG, 10.0 * DEG, 5e3);
-        let mut trial = Mat3::from_cols(
-            Vec3::new(-4e5, 6e4, -2e4),
-            Vec3::new(6e4, -1e5, 3e4),
-            Vec3::new(-2e4, 3e4, -5e4),
-        );
+        let mut trial =
+            Mat3::from_cols(Vec3::new(-4e5, 6e4, -2e4), Vec3::new(6e4, -1e5, 3e4), Vec3::new(-2e4, 3e4, -5e4));
         trial = 0.5 * (trial + trial.transpose());
         let (sigma, d_lambda, y) = dp.return_map(trial, 4e6, 6e6);
         assert_eq!(y, Yield::Surface);

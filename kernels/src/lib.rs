@@ -5,8 +5,8 @@
 
 pub mod blocks;
 pub mod drift;
-pub mod drucker_prager;
 pub mod drift_momentum;
+pub mod drucker_prager;
 pub mod elasticity;
 pub mod grid;
 pub mod iisph;
