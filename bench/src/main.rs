@@ -515,6 +515,10 @@ fn bench(a: &Args) {
     println!("mean iterations      {:.2}", iters as f64 / m);
     println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
     println!("bytes/particle       {:.0}", sim.bytes_per_particle());
+    let per = |b: usize| b as f64 / n as f64;
+    let parts: Vec<String> =
+        sim.memory().iter().filter(|(_, b)| *b > 0).map(|(k, b)| format!("{k} {:.0}", per(*b))).collect();
+    println!("  of which, per fluid particle: {}", parts.join(", "));
     println!("backend              {}", a.backend);
     let nc = clean_s.len();
     println!(

@@ -200,30 +200,37 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    /// Bytes of memory held per fluid particle: stores, neighbour lists,
-    /// grids and the step arena, divided by the number of fluid particles.
-    pub fn bytes_per_particle(&self) -> f64 {
+    /// Bytes of memory held, by what holds them (stores, neighbour pair
+    /// lists by kind: f = fluid, b = wall, s = solid, `ffb` the inner
+    /// transport's copy of `ff`; grids and sort buffers; the step arena),
+    /// capacities included.
+    pub fn memory(&self) -> Vec<(&'static str, usize)> {
         let w = &self.work;
-        let bytes = self.fluid.bytes()
-            + self.walls.bytes()
-            + self.solids.bytes()
-            + self.solid_model.bytes()
-            + w.fs.bytes()
-            + w.sf.bytes()
-            + w.ss.bytes()
-            + w.sb.bytes()
-            + w.bs.bytes()
-            + 4 * (w.solid_own.capacity() + w.solid_v0.capacity())
-            + w.ff.bytes()
-            + w.ffb.bytes()
-            + w.fb.bytes()
-            + w.bf.bytes()
-            + 8 * w.keys.capacity()
-            + 16 * w.sort.capacity()
-            + 4 * w.perm.capacity()
-            + 4 * w.pair_limit.iter().map(|v| v.capacity()).sum::<usize>()
-            + 4 * w.pair_flux.iter().flatten().map(|v| v.capacity()).sum::<usize>()
-            + self.arena.allocated_bytes();
+        vec![
+            ("fluid store", self.fluid.bytes()),
+            ("wall store", self.walls.bytes()),
+            ("solid store", self.solids.bytes()),
+            ("solid model", self.solid_model.bytes()),
+            ("pairs ff", w.ff.bytes()),
+            ("pairs ffb", w.ffb.bytes()),
+            ("pairs fb", w.fb.bytes()),
+            ("pairs bf", w.bf.bytes()),
+            ("pairs fs, sf, ss, sb, bs", w.fs.bytes() + w.sf.bytes() + w.ss.bytes() + w.sb.bytes() + w.bs.bytes()),
+            ("solid rest rows", 4 * (w.solid_own.capacity() + w.solid_v0.capacity())),
+            ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
+            (
+                "mixture pair limits, fluxes",
+                4 * w.pair_limit.iter().map(|v| v.capacity()).sum::<usize>()
+                    + 4 * w.pair_flux.iter().flatten().map(|v| v.capacity()).sum::<usize>(),
+            ),
+            ("step arena", self.arena.allocated_bytes()),
+        ]
+    }
+
+    /// Bytes of memory held per fluid particle: [`Simulation::memory`]
+    /// summed, divided by the number of fluid particles.
+    pub fn bytes_per_particle(&self) -> f64 {
+        let bytes: usize = self.memory().iter().map(|(_, b)| b).sum();
         bytes as f64 / self.fluid.len().max(1) as f64
     }
 
