@@ -299,19 +299,24 @@ fn push_offsets(blk: &mut PairBlock, mask: u32, base: u32, gx: F, gy: F, gz: F) 
         headroom(&mut blk.j, LANES);
         let m = mask as __mmask16;
         // SAFETY: each vector has room for LANES more elements (reserved
-        // above); a compress store writes popcount(mask) <= LANES elements
-        // at its pointer; set_len covers exactly the elements written;
+        // above); each store writes LANES elements at its pointer, of which
+        // set_len covers the popcount(mask) <= LANES that the compress put
+        // first (the rest is spare capacity, written but not exposed);
         // j, gx, gy, gz have the same length `len` (they grow together).
+        // Compress into a register, then a plain store: the compress with
+        // a memory operand (vcompressps m512{k}) is microcoded on AMD Zen 4,
+        // where these four stores took 31 % of the 250k dam break's CPU
+        // time (perf, bench/RESULTS.md).
         unsafe {
             let idx = _mm512_add_epi32(
                 _mm512_set1_epi32(base as i32),
                 _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
             );
-            _mm512_mask_compressstoreu_epi32(blk.j.as_mut_ptr().add(len) as *mut _, m, idx);
+            _mm512_storeu_si512(blk.j.as_mut_ptr().add(len) as *mut _, _mm512_maskz_compress_epi32(m, idx));
             let f = |v: F| std::mem::transmute::<F, __m512>(v);
-            _mm512_mask_compressstoreu_ps(blk.gx.as_mut_ptr().add(len) as *mut _, m, f(gx));
-            _mm512_mask_compressstoreu_ps(blk.gy.as_mut_ptr().add(len) as *mut _, m, f(gy));
-            _mm512_mask_compressstoreu_ps(blk.gz.as_mut_ptr().add(len) as *mut _, m, f(gz));
+            _mm512_storeu_ps(blk.gx.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gx)));
+            _mm512_storeu_ps(blk.gy.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gy)));
+            _mm512_storeu_ps(blk.gz.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gz)));
             blk.j.set_len(len + cnt);
             blk.gx.set_len(len + cnt);
             blk.gy.set_len(len + cnt);
