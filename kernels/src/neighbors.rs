@@ -209,10 +209,6 @@ pub fn build_pairs(
             // Pad to whole vectors with zero pairs.
             let real = blk.j.len() - first;
             let pad = blk.j.get(first).copied().unwrap_or(0);
-            headroom(&mut blk.j, LANES);
-            for v in [&mut blk.gx, &mut blk.gy, &mut blk.gz, &mut blk.w] {
-                headroom(v, blk.j.len() + LANES - v.len());
-            }
             while (blk.j.len() - first) % LANES != 0 {
                 blk.j.push(pad);
                 blk.gx.push(0.0);
@@ -272,18 +268,6 @@ fn merge_ranges(r: &mut [(u32, u32); 27], n: usize) -> usize {
     m
 }
 
-/// Makes room for `more` elements, growing by an eighth of the length
-/// instead of `Vec`'s doubling: the lists are rebuilt every step in the same
-/// blocks and keep their capacity, so doubling left them about 1.5x larger
-/// than their pairs (memory, issue 17), while a block's size changes little
-/// from step to step, so the smaller steps rarely reallocate.
-#[inline(always)]
-fn headroom<T>(v: &mut Vec<T>, more: usize) {
-    if v.capacity() - v.len() < more {
-        v.reserve_exact(more.max(v.len() / 8));
-    }
-}
-
 /// Appends the lanes of `mask`: target index `base + lane` to `j`, the
 /// offset x_ij to the gradient slots (`w` is filled later).
 #[inline(always)]
@@ -294,9 +278,9 @@ fn push_offsets(blk: &mut PairBlock, mask: u32, base: u32, gx: F, gy: F, gz: F) 
         let cnt = mask.count_ones() as usize;
         let len = blk.j.len();
         for v in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
-            headroom(v, LANES);
+            v.reserve(LANES);
         }
-        headroom(&mut blk.j, LANES);
+        blk.j.reserve(LANES);
         let m = mask as __mmask16;
         // SAFETY: each vector has room for LANES more elements (reserved
         // above); each store writes LANES elements at its pointer, of which
@@ -325,10 +309,6 @@ fn push_offsets(blk: &mut PairBlock, mask: u32, base: u32, gx: F, gy: F, gz: F) 
     }
     #[cfg(not(target_feature = "avx512f"))]
     {
-        for v in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
-            headroom(v, LANES);
-        }
-        headroom(&mut blk.j, LANES);
         let (gx, gy, gz) = (gx.to_array(), gy.to_array(), gz.to_array());
         let mut m = mask;
         while m != 0 {
