@@ -29,6 +29,8 @@ fn pressure_is_rho_g_depth_after_one_second() {
     // time mean, so the test averages the deep particles' pressure and
     // reference over every step of the last 0.2 s.
     let mut worst = 0.0f32;
+    // Sums over the particles below the top two layers of the fill: count,
+    // pressure, rho g depth and the absolute difference.
     let deep_sums = |sim: &Simulation| {
         let f = &sim.fluid;
         let (mut n, mut sp, mut sref, mut sabs) = (0usize, 0.0f64, 0.0f64, 0.0f64);

@@ -364,7 +364,10 @@ fn bench(a: &Args) {
             std::process::exit(2);
         }
     };
+    // What the run uses (a `--scene` file has its own values).
     let phases = scene.phases.len();
+    let (spacing, max_dt, max_error) =
+        (scene.simulation.particle_spacing, scene.simulation.max_dt, scene.simulation.max_density_error);
     let t0 = Instant::now();
     let mut sim = Simulation::new(scene);
     let setup_s = t0.elapsed().as_secs_f64();
@@ -554,10 +557,10 @@ fn bench(a: &Args) {
              \"porous\": {}, \"scene\": {}, \"simulated_s\": {:.6}, \"wall_s_per_simulated_s\": {:.1}, \
              \"ms_per_pass\": {{{}}}}}",
             phases,
-            a.spacing,
+            spacing,
             a.threads,
-            a.dt,
-            a.max_error,
+            max_dt,
+            max_error,
             a.warmup,
             wall_s / m,
             median,

@@ -44,7 +44,12 @@
 //!
 //!   sigma_trial = sigma + dt (2 G dev(D) + K tr(D) I + W sigma - sigma W).
 
-use glam::Mat3;
+use glam::{Mat3, Vec3};
+
+/// a I.
+fn iso(a: f32) -> Mat3 {
+    Mat3::from_diagonal(Vec3::splat(a))
+}
 
 /// The Drucker-Prager cone of a granular material, fitted to Mohr-Coulomb
 /// in triaxial compression.
@@ -120,16 +125,14 @@ impl DruckerPrager {
         if sqrt_j2_new > 0.0 {
             let i1_new = f64::from(i1) - 9.0 * bulk * a_psi * d_lambda;
             let scale = (sqrt_j2_new / f64::from(sqrt_j2)) as f32;
-            let sigma = s * scale + Mat3::from_diagonal(glam::Vec3::splat((i1_new / 3.0) as f32));
+            let sigma = s * scale + iso((i1_new / 3.0) as f32);
             (sigma, d_lambda as f32, Yield::Surface)
         } else {
             let p = self.apex_mean_stress();
-            (Mat3::from_diagonal(glam::Vec3::splat(p)), d_lambda as f32, Yield::Apex)
+            (iso(p), d_lambda as f32, Yield::Apex)
         }
     }
-}
 
-impl DruckerPrager {
     /// One explicit step `dt` of the stress `sigma` (Pa) of a particle whose
     /// velocity gradient is `grad_v` (L_ab = d v_a / d x_b, 1/s): the
     /// Jaumann-rate elastic trial (module doc), symmetrised against
@@ -138,8 +141,8 @@ impl DruckerPrager {
         let d = 0.5 * (grad_v + grad_v.transpose());
         let w = 0.5 * (grad_v - grad_v.transpose());
         let tr = d.x_axis.x + d.y_axis.y + d.z_axis.z;
-        let dev = d - Mat3::from_diagonal(glam::Vec3::splat(tr / 3.0));
-        let rate = 2.0 * mu * dev + Mat3::from_diagonal(glam::Vec3::splat(bulk * tr)) + w * sigma - sigma * w;
+        let dev = d - iso(tr / 3.0);
+        let rate = 2.0 * mu * dev + iso(bulk * tr) + w * sigma - sigma * w;
         let trial = sigma + dt * rate;
         self.return_map(0.5 * (trial + trial.transpose()), mu, bulk)
     }
@@ -148,7 +151,7 @@ impl DruckerPrager {
 /// (I1, the deviator s, sqrt(J2)) of a symmetric stress.
 fn invariants(sigma: Mat3) -> (f32, Mat3, f32) {
     let i1 = sigma.x_axis.x + sigma.y_axis.y + sigma.z_axis.z;
-    let s = sigma - Mat3::from_diagonal(glam::Vec3::splat(i1 / 3.0));
+    let s = sigma - iso(i1 / 3.0);
     let ss = s.x_axis.length_squared() + s.y_axis.length_squared() + s.z_axis.length_squared();
     (i1, s, (0.5 * ss).sqrt())
 }
@@ -156,7 +159,6 @@ fn invariants(sigma: Mat3) -> (f32, Mat3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
 
     const DEG: f32 = std::f32::consts::PI / 180.0;
 
