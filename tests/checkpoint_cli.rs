@@ -88,7 +88,7 @@ fn inspect_tells_frames_from_checkpoints_and_reports_damage() {
         "oil",
         "m^3",
         // scene + 11 fluid + 8 wall + 22 solid arrays (empty without solids).
-        "checksums:  all 44 datasets hold",
+        "checksums:  all 51 datasets hold",
     ] {
         assert!(report.contains(want), "missing {want:?}");
     }

@@ -771,3 +771,40 @@ fn mesh_keys_are_checked_like_the_other_shapes() {
     );
     assert_rejected(&text, "fluid[0]", "found both `box` and `mesh`");
 }
+
+/// Issue 18: `model = "granular"` and its keys (`POROUS_SOLID`'s solid,
+/// without its porous table, made granular).
+fn granular_edited(keys: &str) -> String {
+    let solid = POROUS_SOLID.split("[solid.porous]").next().expect("solid part");
+    format!("{MINIMAL}{solid}{keys}\n")
+}
+
+#[test]
+fn granular_solid_parses_with_its_values_and_defaults() {
+    use porosph::scene::SolidMaterial;
+    let scene =
+        parse(&granular_edited("model = \"granular\"\nfriction_angle = 35.0\ncohesion = 200.0")).expect("valid");
+    let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular: {:?}", scene.solids[0].model) };
+    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (35.0, 0.0, 200.0, false));
+    let scene = parse(&granular_edited("model = \"granular\"")).expect("valid");
+    let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
+    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (30.0, 0.0, 0.0, false));
+    assert_eq!(parse(&granular_edited("")).expect("valid").solids[0].model, SolidMaterial::Elastic);
+}
+
+#[test]
+fn granular_keys_are_checked() {
+    assert_rejected(&granular_edited("friction_angle = 30.0"), "solid[0].friction_angle", "model is \"elastic\"");
+    assert_rejected(&granular_edited("wall_slip = true"), "solid[0].wall_slip", "granular");
+    assert_rejected(&granular_edited("model = \"sand\""), "solid[0].model", "");
+    let g = |k: &str| granular_edited(&format!("model = \"granular\"\n{k}"));
+    assert_rejected(&g("friction_angle = 90.0"), "solid[0].friction_angle", "in (0, 90)");
+    assert_rejected(&g("dilatancy_angle = 40.0"), "solid[0].dilatancy_angle", "<= friction_angle = 30");
+    assert_rejected(&g("cohesion = -1.0"), "solid[0].cohesion", "");
+    // A body is elastic or granular throughout.
+    let two = format!(
+        "{}\n[[solid]]\nname = \"lid\"\nbox = {{ min = [0.3, 0.1, 0.0], max = [0.4, 0.12, 0.1] }}\ndensity = 600.0\nshear_modulus = 2e4\nlame_lambda = 1e4\nbody = \"sponge\"\n",
+        g("")
+    );
+    assert_rejected(&two, "solid[1].model", "a body is elastic or granular throughout");
+}

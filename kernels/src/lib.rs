@@ -8,6 +8,7 @@ pub mod drift;
 pub mod drift_momentum;
 pub mod drucker_prager;
 pub mod elasticity;
+pub mod granular;
 pub mod grid;
 pub mod iisph;
 pub mod integrate;

@@ -46,6 +46,10 @@ pub struct SolidNeighbours<'a> {
     pub body: &'a [u32],
     /// 1 for the solid particles that do not move (sorted order).
     pub fixed: &'a [u32],
+    /// 1 for the solid particles without wall pairs in the solve (sorted
+    /// order): the fixed ones, and granular ones, whose contact with walls
+    /// is their own stress (`granular.rs`).
+    pub no_walls: &'a [u32],
 }
 
 /// The same, to scale in place.
@@ -55,6 +59,7 @@ pub struct SolidNeighboursMut<'a> {
     pub ss: &'a mut PairLists,
     pub body: &'a [u32],
     pub fixed: &'a [u32],
+    pub no_walls: &'a [u32],
 }
 
 /// Whether the SS pair (i, j) takes part in the solve: two bodies, not both fixed.
@@ -92,7 +97,7 @@ pub fn solid_volumes(
         .for_each(|(b, ((sig, v), ((bf, bb), bs)))| {
             for q in 0..sig.len() {
                 let i = b * BLOCK + q;
-                let walls = if nb.fixed[i] != 0 { 0.0 } else { weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b) };
+                let walls = if nb.no_walls[i] != 0 { 0.0 } else { weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b) };
                 let s = own[i]
                     + weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f)
                     + walls
@@ -166,8 +171,8 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
                 let i = b * BLOCK + q;
                 let vi = rows.vol[i];
                 scale_pairs(bf, q, vi, rows.vol_fluid);
-                if fixed[i] != 0 {
-                    // A fixed particle and a wall: no pair of the solve.
+                if nb.no_walls[i] != 0 {
+                    // A fixed (or granular) particle and a wall: no pair of the solve.
                     scale_pairs(bb, q, 0.0, rows.vol_wall);
                 } else {
                     scale_pairs(bb, q, vi, rows.vol_wall);

@@ -36,8 +36,9 @@
 //! ([`FluidStore::for_each_column`]): an array added to a store later is
 //! saved and restored with no change here (a file from before it then lacks
 //! that dataset, and reading it is an error rather than a silent default;
-//! the one exception is the fractions' low parts, `alpha_lo` and `beta_lo`,
-//! which an older run did not have, so 0 is its exact state).
+//! the exceptions are the fractions' low parts, `alpha_lo` and `beta_lo`,
+//! and the granular solids' state, `sxx` .. `plastic_strain`, which an
+//! older run did not have, so 0 is its exact state).
 //! Datasets are contiguous and uncompressed, so a checkpoint is written at
 //! disk speed; a reader can also take the bytes straight from a memory map
 //! ([`ReadMethod::Mmap`]), which measured no faster (bench/RESULTS.md).
@@ -57,6 +58,11 @@ use std::path::Path;
 /// The fluid's low parts of the fractions (`FluidStore::alpha_lo`), which
 /// files written before them lack; they read as 0 there.
 const LOW_PARTS: [&str; 2] = ["alpha_lo", "beta_lo"];
+
+/// The granular solids' state (`SolidStore::sxx` .. `plastic_strain`),
+/// which files written before granular solids existed lack; their solids
+/// were all elastic, where it is 0.
+const GRANULAR_STATE: [&str; 7] = ["sxx", "syy", "szz", "sxy", "sxz", "syz", "plastic_strain"];
 
 /// The value of the root attribute `format`.
 pub const FORMAT: &str = "porosph checkpoint";
@@ -658,7 +664,15 @@ impl<'a> Reader<'a> {
         solids.for_each_column_mut(|name, unit, c| {
             known.push(name);
             if result.is_ok() {
-                result = self.read_column(&g, name, unit, c, ns, phases);
+                result = match c {
+                    // A file from before granular solids: all its solids
+                    // were elastic, whose granular state is 0.
+                    ColumnMut::F32(v) if GRANULAR_STATE.contains(&name) && !g.link_exists(name) => {
+                        *v = vec![0.0; ns];
+                        Ok(())
+                    }
+                    c => self.read_column(&g, name, unit, c, ns, phases),
+                };
             }
         });
         result?;

@@ -3,6 +3,7 @@
 //! the neighbour structures and the per-step arena.
 
 mod backend;
+pub mod granular;
 mod integrate;
 mod mixture;
 mod neighbours;
@@ -17,8 +18,9 @@ mod step;
 pub mod timing;
 mod volumes;
 
+pub use granular::{Granular, Mixed};
 pub use restore::SavedState;
-pub use solid::{Peer2018, SolidModel, SolidStats};
+pub use solid::{Current, Peer2018, SolidModel, SolidStats};
 pub use step::StepError;
 pub use timing::{PassTimes, PASSES};
 
@@ -66,6 +68,8 @@ pub struct Params {
     /// Phase pressures p_k = alphahat_k p rather than the default shared
     /// p_k = p (`simulation.phase_pressure`).
     pub fraction_pressure: bool,
+    /// Whether each solid (`[[solid]]` order) is granular (`granular.rs`).
+    pub solid_granular: Vec<bool>,
     /// Lamé parameters of each solid body (`[[solid]]` order), Pa.
     pub solid_lame: Vec<Lame>,
     /// Relative residual of the elastic conjugate gradients.

@@ -95,13 +95,14 @@ pub(super) fn setup<'a>(
         };
         iisph::wall_setup(&mut w.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
-            let vol_free = arena.alloc_slice_fill_iter(vols.vol_solid.iter().zip(vols.fixed_solid).map(|(&v, &f)| {
-                if f != 0 {
-                    0.0
-                } else {
-                    v
-                }
-            }));
+            let vol_free =
+                arena.alloc_slice_fill_iter(vols.vol_solid.iter().zip(vols.no_walls_solid).map(|(&v, &f)| {
+                    if f != 0 {
+                        0.0
+                    } else {
+                        v
+                    }
+                }));
             solid_rows::wall_solid_setup(&mut w.bs, vols.vol_wall, vol_free, u_solid, mobility, dt, src_b, diag_b);
             let rows = SolidRows {
                 vol: vols.vol_solid,
@@ -119,6 +120,7 @@ pub(super) fn setup<'a>(
                 ss: &mut w.ss,
                 body: vols.body_solid,
                 fixed: vols.fixed_solid,
+                no_walls: vols.no_walls_solid,
             };
             solid_rows::solid_setup(nb, rows, dt, src_s, diag_s);
         }
@@ -194,7 +196,14 @@ pub(super) fn solve<'a>(
         wall_rows,
         solids: (ns > 0).then_some(SolidSystem {
             fs: &w.fs,
-            solid: SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: vols.body_solid, fixed: vols.fixed_solid },
+            solid: SolidNeighbours {
+                sf: &w.sf,
+                sb: &w.sb,
+                ss: &w.ss,
+                body: vols.body_solid,
+                fixed: vols.fixed_solid,
+                no_walls: vols.no_walls_solid,
+            },
             bs: &w.bs,
             vol: vols.vol_solid,
             rows: solid_rows,

@@ -53,7 +53,7 @@ impl Simulation {
         let params = Params::from_scene(&scene);
         let mut work = wall_workspace(&mut walls, &params);
         (work.solid_own, work.solid_v0) = super::volumes::rest_rows(&params, &solids);
-        let solid_model = params.solid_model(&solids);
+        let solid_model = params.solid_model(&scene, &solids);
         Ok(Simulation {
             scene,
             params,

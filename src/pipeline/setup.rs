@@ -1,10 +1,12 @@
 //! Building a [`Simulation`] from a [`Scene`]: sampling, the static wall
 //! structures, and the initial time step.
 
+use super::granular::{Granular, Mixed};
 use super::solid::{Peer2018, SolidModel};
 use super::{Params, Simulation, StepStats, Workspace};
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
+    SolidMaterial,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -45,6 +47,7 @@ impl Params {
             },
             conservative_transport: s.phase_transport == PhaseTransport::Conservative,
             fraction_pressure: s.phase_pressure == PhasePressure::Fraction,
+            solid_granular: scene.solids.iter().map(|b| matches!(b.model, SolidMaterial::Granular(_))).collect(),
             solid_lame: scene.solids.iter().map(|b| Lame { mu: b.shear_modulus, lambda: b.lame_lambda }).collect(),
             elastic_tolerance: s.elastic_tolerance,
             elastic_max_iterations: s.elastic_max_iterations,
@@ -90,17 +93,34 @@ impl Params {
         solids.body.iter().map(|&b| self.solid_group[b as usize]).collect()
     }
 
-    /// The solid model of `solids` (PHYSICS.md §3: Peer et al. 2018).
-    pub fn solid_model(&self, solids: &SolidStore) -> Box<dyn SolidModel> {
-        Box::new(Peer2018::new(
+    /// The solid model of `solids` of `scene` (PHYSICS.md §3: Peer et al.
+    /// 2018; with granular bodies, [`Mixed`] with the Drucker-Prager
+    /// continuum, `granular.rs`).
+    pub fn solid_model(&self, scene: &Scene, solids: &SolidStore) -> Box<dyn SolidModel> {
+        let granular = Granular::new(scene, solids);
+        let mut groups = self.particle_groups(solids);
+        if let Some(g) = &granular {
+            // Granular particles have no rest neighbours: a group each.
+            let first = self.bodies() as u32;
+            for (i, grp) in groups.iter_mut().enumerate() {
+                if g.is_granular(i) {
+                    *grp = first + i as u32;
+                }
+            }
+        }
+        let elastic = Peer2018::new(
             solids,
-            &self.particle_groups(solids),
+            &groups,
             &self.particle_rest_mass(solids),
             &self.solid_lame,
             &self.kernel,
             self.elastic_tolerance,
             self.elastic_max_iterations,
-        ))
+        );
+        match granular {
+            Some(g) => Box::new(Mixed::new(elastic, g)),
+            None => Box::new(elastic),
+        }
     }
 
     /// Number of phases K.
@@ -220,6 +240,13 @@ impl Simulation {
                 (&mut solids.strain_trace, 0.0),
                 (&mut solids.saturation, 0.0),
                 (&mut solids.pore_pressure, 0.0),
+                (&mut solids.sxx, 0.0),
+                (&mut solids.syy, 0.0),
+                (&mut solids.szz, 0.0),
+                (&mut solids.sxy, 0.0),
+                (&mut solids.sxz, 0.0),
+                (&mut solids.syz, 0.0),
+                (&mut solids.plastic_strain, 0.0),
             ] {
                 col.push(val);
             }
@@ -227,7 +254,7 @@ impl Simulation {
         solids.body = sampled_solids.body;
         solids.fixed = sampled_solids.fixed;
         solids.id = ((nf + nw) as u32..(nf + nw + ns) as u32).collect();
-        let solid_model = params.solid_model(&solids);
+        let solid_model = params.solid_model(&scene, &solids);
 
         let mut work = wall_workspace(&mut walls, &params);
         (work.solid_own, work.solid_v0) = super::volumes::rest_rows(&params, &solids);

@@ -4,8 +4,8 @@
 //! velocities and masses (the [`SolidStore`]) and, within the pressure
 //! solve, the bodies' response to forces; how a solid deforms is behind
 //! [`SolidModel`]. [`Peer2018`] is the implicit
-//! corotated SPH elasticity of Peer et al. 2018; another model (the paper's
-//! Example 7 uses a granular one) implements the same trait.
+//! corotated SPH elasticity of Peer et al. 2018; the granular continuum of
+//! the paper's Example 7 runs next to it (`granular.rs`, [`super::granular::Mixed`]).
 
 use super::timing::{pass, PassTimes};
 use super::Params;
@@ -15,8 +15,10 @@ use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
+use porosph_kernels::granular::Walls;
 use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::kernel::Kernel;
+use porosph_kernels::neighbors::PairLists;
 use rayon::prelude::*;
 
 /// What a solid model did in one step.
@@ -42,8 +44,16 @@ pub trait SolidModel: Send + Sync {
     /// under gravity `g` and the model's own forces (with `pore`, the pore
     /// stress eta p^pore of each particle in Pa, or `None`), in
     /// [`SolidModel::predicted`]; fixed particles keep their prescribed
-    /// velocity. Writes the output `stress`.
-    fn predict(&mut self, solids: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32) -> SolidStats;
+    /// velocity. Writes the output `stress`. `near` is the current
+    /// neighbourhood, for a model without rest neighbours.
+    fn predict(
+        &mut self,
+        solids: &mut SolidStore,
+        g: Vec3,
+        pore: Option<&[f32]>,
+        dt: f32,
+        near: &Current,
+    ) -> SolidStats;
 
     /// The velocities of the last [`SolidModel::predict`] (store order), m/s.
     fn predicted(&self) -> &[Vec3];
@@ -69,6 +79,22 @@ pub trait SolidModel: Send + Sync {
 
     /// Bytes held.
     fn bytes(&self) -> usize;
+}
+
+/// The solids' current neighbourhood from pass 0, in the sorted order of
+/// the solid pair lists.
+#[derive(Clone, Copy)]
+pub struct Current<'a> {
+    /// Solid-solid pairs (all bodies; targets sorted solids).
+    pub ss: &'a PairLists,
+    /// Solid-wall pairs (targets wall indices).
+    pub sb: &'a PairLists,
+    /// Sorted index -> store index.
+    pub perm: &'a [u32],
+    /// Sorted solid positions, m.
+    pub x: [&'a [f32]; 3],
+    /// The walls' positions and rest volumes.
+    pub walls: Walls<'a>,
 }
 
 /// Implicit corotated SPH elasticity (Peer et al. 2018, PHYSICS.md §3.1-3.3):
@@ -174,7 +200,7 @@ impl SolidModel for Peer2018 {
         s.strain_trace.par_iter_mut().zip(self.def.par_iter()).for_each(|(t, d)| *t = trace(&d.strain));
     }
 
-    fn predict(&mut self, s: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32) -> SolidStats {
+    fn predict(&mut self, s: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32, _: &Current) -> SolidStats {
         let n = s.len();
         self.dt = dt;
         self.t.resize(n, Mat3::ZERO);
@@ -310,10 +336,11 @@ pub(super) fn predict(
     solids: &mut SolidStore,
     model: &mut dyn SolidModel,
     pore: Option<&[f32]>,
+    near: &Current,
     dt: f32,
     tm: &mut PassTimes,
 ) -> SolidStats {
-    tm.time(pass::ELASTICITY, || model.predict(solids, Vec3::from(p.gravity), pore, dt))
+    tm.time(pass::ELASTICITY, || model.predict(solids, Vec3::from(p.gravity), pore, dt, near))
 }
 
 /// Alg. 4's first line: v^{n+1} = v^pred + dt a^p_s for the free particles

@@ -11,6 +11,7 @@ use super::{Params, Simulation, StepStats, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::max_f32;
+use porosph_kernels::granular::Walls;
 use porosph_kernels::iisph::Vel;
 use std::fmt;
 
@@ -201,7 +202,15 @@ fn step_passes(
         st.max_darcy_speed = t.max_darcy_speed;
     }
     if !solids.is_empty() {
-        let cg = solid::predict(p, solids, model, terms.as_ref().and_then(|t| t.pore_stress), dt, tm);
+        let [sx, sy, sz] = &w.solid_sorted;
+        let near = solid::Current {
+            ss: &w.ss,
+            sb: &w.sb,
+            perm: &w.solid_perm,
+            x: [sx, sy, sz],
+            walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
+        };
+        let cg = solid::predict(p, solids, model, terms.as_ref().and_then(|t| t.pore_stress), &near, dt, tm);
         st.cg_iterations = cg.iterations;
         st.cg_residual = cg.residual;
     }

@@ -30,6 +30,9 @@ pub(super) struct Volumes<'a> {
     pub body_solid: &'a [u32],
     /// 1 for the fixed solid particles (sorted order).
     pub fixed_solid: &'a [u32],
+    /// 1 for the solid particles without wall pairs in the solve: fixed or
+    /// granular (sorted order).
+    pub no_walls_solid: &'a [u32],
     pub sigma_solid: &'a [f32],
     pub vol_solid: &'a [f32],
 }
@@ -54,8 +57,12 @@ pub(super) fn volumes<'a>(
         arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
     let fixed_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.fixed[i as usize]));
     let v0_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_v0[i as usize]));
+    let no_walls_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
+        let i = i as usize;
+        u32::from(solids.fixed[i] != 0 || p.solid_granular[solids.body[i] as usize])
+    }));
     let v0_free =
-        arena.alloc_slice_fill_iter(fixed_s.iter().zip(v0_s.iter()).map(|(&f, &v)| if f != 0 { 0.0 } else { v }));
+        arena.alloc_slice_fill_iter(no_walls_s.iter().zip(v0_s.iter()).map(|(&f, &v)| if f != 0 { 0.0 } else { v }));
     let own = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_own[i as usize]));
     let (sigma_s, vol_s) = (zeros(ns), zeros(ns));
     tm.time(pass::DENSITIES, || {
@@ -63,7 +70,8 @@ pub(super) fn volumes<'a>(
         iisph::fluid_volumes(&w.ff, &w.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
         if ns > 0 {
-            let nb = SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: body_s, fixed: fixed_s };
+            let nb =
+                SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: body_s, fixed: fixed_s, no_walls: no_walls_s };
             solid_rows::solid_volumes(nb, own, ph.v0, &walls.rest_volume, v0_s, sigma_s, vol_s);
             solid_rows::wall_solid_volumes(&w.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
         }
@@ -90,6 +98,7 @@ pub(super) fn volumes<'a>(
         vol_wall_full: vol_b_full,
         body_solid: body_s,
         fixed_solid: fixed_s,
+        no_walls_solid: no_walls_s,
         sigma_solid: sigma_s,
         vol_solid: vol_s,
     }

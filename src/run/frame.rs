@@ -27,8 +27,8 @@ fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArr
 impl Simulation {
     /// The current state as a frame: fluid particles first, then walls,
     /// then solids. Solid particles carry `stress` (von Mises, Pa) and
-    /// `strain_trace`, `saturation` and `pore_pressure` (Pa); those are 0 on
-    /// fluid and walls. Fluid particles carry `alpha` and `beta` (outer and
+    /// `strain_trace`, `saturation`, `pore_pressure` (Pa) and, granular ones,
+    /// `plastic_strain`; those are 0 on fluid and walls. Fluid particles carry `alpha` and `beta` (outer and
     /// inner fractions, K components each, 0 elsewhere). Solids have the
     /// density of their body.
     pub fn frame(&self) -> Frame {
@@ -96,6 +96,7 @@ impl Simulation {
                 array("strain_trace", "", 1, ArrayData::F32(cat(&zero_fw, &s.strain_trace, &[]))),
                 array("saturation", "", 1, ArrayData::F32(cat(&zero_fw, &s.saturation, &[]))),
                 array("pore_pressure", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.pore_pressure, &[]))),
+                array("plastic_strain", "", 1, ArrayData::F32(cat(&zero_fw, &s.plastic_strain, &[]))),
                 array("alpha", "", k, ArrayData::F32(alpha)),
                 array("beta", "", k, ArrayData::F32(beta)),
                 array("color", "", 3, ArrayData::F32(color)),

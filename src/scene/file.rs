@@ -10,7 +10,7 @@
 //! more than one value (max_dt <= end_time, phase names, exactly one
 //! shape) is checked in `parse.rs`, which builds the [`super::Scene`].
 
-use super::{Motion, PorousPhase, Simulation};
+use super::{Motion, PorousPhase, Simulation, SolidModelChoice};
 use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
 use serde::Deserialize;
@@ -304,6 +304,37 @@ pub(super) struct SolidFile {
     ///
     /// `[solid.porous]`: the solid absorbs liquid (P §4-5, PHYSICS.md §4.2).
     pub porous: Option<PorousFile>,
+    /// How the solid deforms
+    ///
+    /// `"elastic"` (default): corotated linear elasticity (Peer et al. 2018)
+    /// with fixed rest neighbours. `"granular"`: an elasto-plastic continuum
+    /// with a Drucker-Prager yield surface and no fixed neighbours, which
+    /// flows without limit (sand; kernels/src/granular.rs). Every entry of a body
+    /// has the same model.
+    #[serde(default)]
+    pub model: SolidModelChoice,
+    /// The friction angle phi in degrees (granular only)
+    ///
+    /// The Drucker-Prager cone through the Mohr-Coulomb compression
+    /// meridian; default 30.
+    #[schemars(extend("exclusiveMinimum" = 0, "exclusiveMaximum" = 90))]
+    pub friction_angle: Option<f32>,
+    /// The dilatancy angle psi in degrees (granular only)
+    ///
+    /// 0 (default): no plastic volume change; at most the friction angle.
+    #[schemars(range(min = 0))]
+    pub dilatancy_angle: Option<f32>,
+    /// The cohesion c in Pa (granular only)
+    ///
+    /// The dry value; 0 (default) for sand that holds no tension.
+    #[schemars(range(min = 0))]
+    pub cohesion: Option<f32>,
+    /// Whether the walls are frictionless for this solid (granular only)
+    ///
+    /// false (default): the walls hold the grains without slip, so their
+    /// friction is the material's own (a rough base); true: free slip (a
+    /// smooth, e.g. glass, wall).
+    pub wall_slip: Option<bool>,
 }
 
 /// `fixed = { box = .. }`: the kinematic part of a solid.

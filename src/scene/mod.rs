@@ -373,6 +373,42 @@ pub struct Solid {
     pub body: String,
     /// `[solid.porous]`: the porous parameters of this solid (region).
     pub porous: Option<Porous>,
+    /// `model`: how the solid deforms (default elastic).
+    pub model: SolidMaterial,
+}
+
+/// `model`: the name of a solid's deformation model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SolidModelChoice {
+    /// `"elastic"` (default): corotated SPH elasticity (Peer et al. 2018).
+    #[default]
+    Elastic,
+    /// `"granular"`: the Drucker-Prager elasto-plastic continuum.
+    Granular,
+}
+
+/// How a solid deforms, with the model's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SolidMaterial {
+    /// Corotated linear elasticity with the body's rest neighbours.
+    Elastic,
+    /// The Drucker-Prager elasto-plastic continuum (kernels/src/granular.rs).
+    Granular(Granular),
+}
+
+/// A granular solid's plastic parameters (its elastic ones are the solid's
+/// `shear_modulus` and `lame_lambda`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Granular {
+    /// Friction angle phi, degrees.
+    pub friction_angle: f32,
+    /// Dilatancy angle psi, degrees.
+    pub dilatancy_angle: f32,
+    /// Cohesion c (dry), Pa.
+    pub cohesion: f32,
+    /// Walls are frictionless (free slip) for this solid; else no slip.
+    pub wall_slip: bool,
 }
 
 /// `[solid.porous]`: a porous solid (P §4, PHYSICS.md §4.2, §7).

@@ -15,7 +15,10 @@ use super::file::{
     SphereFile, WallFile,
 };
 use super::mesh::{MeshSource, TriMesh};
-use super::{FluidBlock, Motion, Phase, Porous, Scene, SceneError, Shape, Simulation, Solid, Wall};
+use super::{
+    FluidBlock, Granular, Motion, Phase, Porous, Scene, SceneError, Shape, Simulation, Solid, SolidMaterial,
+    SolidModelChoice, Wall,
+};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toml::de::DeTable;
@@ -159,6 +162,19 @@ impl Cx<'_> {
                     format!("duplicate solid name \"{}\": solid[{j}] already uses it", solid.name),
                 ));
             }
+            if let Some(j) = solids.iter().position(|t| {
+                t.body == solid.body
+                    && matches!(t.model, SolidMaterial::Granular(_))
+                        != matches!(solid.model, SolidMaterial::Granular(_))
+            }) {
+                return Err(self.err(
+                    &path.key("model"),
+                    format!(
+                        "solid[{j}] of the same body \"{}\" has another model: a body is elastic or granular throughout",
+                        solid.body
+                    ),
+                ));
+            }
             solids.push(solid);
         }
         Ok(Scene { simulation, phases, fluids, walls, solids, origin: String::new(), text: String::new() })
@@ -293,6 +309,7 @@ impl Cx<'_> {
                 self.err(&path.key("motion"), "motion moves the fixed particles, but the solid has no `fixed` shape")
             );
         }
+        let model = self.solid_material(path, &s)?;
         let body = match s.body {
             Some(b) if b.trim().is_empty() => {
                 let key = path.key("body");
@@ -317,7 +334,52 @@ impl Cx<'_> {
             motion: s.motion,
             body,
             porous,
+            model,
         })
+    }
+
+    /// `model` of the `[[solid]]` at `path`, with the granular keys (which
+    /// only a granular solid may have).
+    fn solid_material(&self, path: &KeyPath, s: &SolidFile) -> Result<SolidMaterial, SceneError> {
+        let keys = [
+            ("friction_angle", s.friction_angle.is_some()),
+            ("dilatancy_angle", s.dilatancy_angle.is_some()),
+            ("cohesion", s.cohesion.is_some()),
+            ("wall_slip", s.wall_slip.is_some()),
+        ];
+        if s.model == SolidModelChoice::Elastic {
+            if let Some((key, _)) = keys.iter().find(|(_, given)| *given) {
+                return Err(self.err(
+                    &path.key(key),
+                    format!("{key} is a granular solid's parameter, but this solid's model is \"elastic\" (set model = \"granular\")"),
+                ));
+            }
+            return Ok(SolidMaterial::Elastic);
+        }
+        let g = Granular {
+            friction_angle: s.friction_angle.unwrap_or(30.0),
+            dilatancy_angle: s.dilatancy_angle.unwrap_or(0.0),
+            cohesion: s.cohesion.unwrap_or(0.0),
+            wall_slip: s.wall_slip.unwrap_or(false),
+        };
+        if !(g.friction_angle > 0.0 && g.friction_angle < 90.0) {
+            let key = path.key("friction_angle");
+            return Err(self.err(&key, format!("expected 0 < friction_angle < 90 degrees, found {}", g.friction_angle)));
+        }
+        if !(g.dilatancy_angle >= 0.0 && g.dilatancy_angle <= g.friction_angle) {
+            let key = path.key("dilatancy_angle");
+            return Err(self.err(
+                &key,
+                format!(
+                    "expected 0 <= dilatancy_angle <= friction_angle = {} degrees, found {}",
+                    g.friction_angle, g.dilatancy_angle
+                ),
+            ));
+        }
+        if g.cohesion.is_nan() || g.cohesion < 0.0 {
+            return Err(self.err(&path.key("cohesion"), format!("expected cohesion >= 0 Pa, found {}", g.cohesion)));
+        }
+        Ok(SolidMaterial::Granular(g))
     }
 
     /// `[solid.porous]` at `path`.

@@ -231,8 +231,43 @@ soa! {
         saturation: Vec<f32> [""],
         /// Pore pressure p^pore of the last step, Pa (P-Eq. 9; output only).
         pore_pressure: Vec<f32> ["Pa"],
+        /// Effective Cauchy stress of a granular particle, xx (tension
+        /// positive; its state, which the next step continues; 0 on
+        /// elastic particles), Pa.
+        sxx: Vec<f32> ["Pa"],
+        /// Granular stress, yy, Pa.
+        syy: Vec<f32> ["Pa"],
+        /// Granular stress, zz, Pa.
+        szz: Vec<f32> ["Pa"],
+        /// Granular stress, xy, Pa.
+        sxy: Vec<f32> ["Pa"],
+        /// Granular stress, xz, Pa.
+        sxz: Vec<f32> ["Pa"],
+        /// Granular stress, yz, Pa.
+        syz: Vec<f32> ["Pa"],
+        /// Accumulated plastic shear strain of a granular particle, the sum
+        /// of its plastic multipliers (0 on elastic particles).
+        plastic_strain: Vec<f32> [""],
         /// Stable particle id (after the fluid and wall ids).
         id: Vec<u32> [""],
+    }
+}
+
+impl SolidStore {
+    /// The granular stress of particle `i` (symmetric), Pa.
+    pub fn granular_stress(&self, i: usize) -> glam::Mat3 {
+        let (xy, xz, yz) = (self.sxy[i], self.sxz[i], self.syz[i]);
+        glam::Mat3::from_cols(
+            glam::Vec3::new(self.sxx[i], xy, xz),
+            glam::Vec3::new(xy, self.syy[i], yz),
+            glam::Vec3::new(xz, yz, self.szz[i]),
+        )
+    }
+
+    /// Sets the granular stress of particle `i` from a symmetric `sigma`.
+    pub fn set_granular_stress(&mut self, i: usize, sigma: glam::Mat3) {
+        (self.sxx[i], self.syy[i], self.szz[i]) = (sigma.x_axis.x, sigma.y_axis.y, sigma.z_axis.z);
+        (self.sxy[i], self.sxz[i], self.syz[i]) = (sigma.x_axis.y, sigma.x_axis.z, sigma.y_axis.z);
     }
 }
 

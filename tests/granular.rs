@@ -1,0 +1,147 @@
+//! Granular solids (issue 18; kernels/src/granular.rs): the Drucker-Prager
+//! continuum in the step.
+
+mod common;
+
+use common::scene_text;
+use porosph::pipeline::Simulation;
+
+/// A column of sand (1600 kg/m^3) in a closed box, `w` wide, `h0` high.
+fn column(d: f32, w: f32, h0: f32, depth: f32, extra: &str, dt: &str) -> String {
+    format!(
+        r#"
+[simulation]
+particle_spacing = {d}
+end_time = 10.0
+max_dt = {dt}
+
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.001
+
+[[wall]]
+box = {{ min = [0.0, 0.0, 0.0], max = [{w}, {top}, {depth}] }}
+container = true
+
+[[solid]]
+name = "sand"
+box = {{ min = [0.0, 0.0, 0.0], max = [{w}, {h0}, {depth}] }}
+density = 1600.0
+shear_modulus = 1e6
+lame_lambda = 1e6
+model = "granular"
+friction_angle = 30.0
+{extra}
+"#,
+        top = h0 + 0.1
+    )
+}
+
+/// Vertical stress against rho g depth of the particles deeper than
+/// `below` under the column's top: (mean per-particle |error| / (rho g depth),
+/// mean ratio), with the top at the highest particle + d/2.
+fn vertical_stress_error(sim: &Simulation, d: f32, below: f32, rho: f32) -> (f64, f64, usize) {
+    let s = &sim.solids;
+    let g = -sim.params.gravity[1];
+    let top = s.y.iter().copied().fold(f32::MIN, f32::max) + 0.5 * d;
+    let (mut err, mut ratio, mut n) = (0.0f64, 0.0f64, 0usize);
+    for i in 0..s.len() {
+        let depth = top - s.y[i];
+        if depth > below {
+            let r = rho * g * depth;
+            err += f64::from(((-s.syy[i] - r) / r).abs());
+            ratio += f64::from(-s.syy[i] / r);
+            n += 1;
+        }
+    }
+    (err / n as f64, ratio / n as f64, n)
+}
+
+/// Issue 18, "a confined sand column at rest": 0.3 m of dry sand (1600
+/// kg/m^3, phi = 30 deg, c = 0, G = lambda = 1 MPa) released from zero
+/// stress in a box with frictionless walls (`wall_slip`, so the walls carry
+/// none of its weight: no Janssen arching), max_dt 2 ms, 5 s. Returns (max
+/// speed, mean per-particle |sigma_yy - rho g depth| / (rho g depth), mean
+/// ratio) over the particles deeper than 3 d (the free surface's kernel
+/// truncation sets the stress of the top layers).
+fn sand_column_at_rest(d: f32) -> (f32, f64, f64) {
+    let mut sim = Simulation::new(scene_text(&column(d, 0.2, 0.3, 0.1, "wall_slip = true", "0.002")));
+    common::run_until(&mut sim, 5.0);
+    let (err, ratio, n) = vertical_stress_error(&sim, d, 3.0 * d, 1600.0);
+    let speed = sim.max_speed();
+    println!(
+        "d = {d} m, {} particles, t = {:.2} s: max speed {speed:.2e} m/s; sigma_yy / (rho g depth) over {n} \
+         particles deeper than 3 d: mean {ratio:.4}, mean |error| {err:.4}",
+        sim.solids.len(),
+        sim.time
+    );
+    (speed, err, ratio)
+}
+
+/// The column settles: every speed below the issue's 1 mm/s after 5 s
+/// (measured 2.2e-4 m/s at d = 2 cm). Before the walls' mirror velocity
+/// (kernels/src/granular.rs) it never settled (5-10 mm/s RMS).
+#[test]
+fn sand_column_comes_to_rest() {
+    let (speed, _, _) = sand_column_at_rest(0.02);
+    assert!(speed < 1e-3, "max speed {speed} m/s");
+}
+
+/// The issue's stress criterion, vertical stress = rho g depth within 5 %
+/// per particle. FAILS today: at d = 2 cm the mean per-particle error is
+/// 13.9 % (mean ratio 1.064: a stress offset of about rho g d from the free
+/// surface, and a zig-zag of a few % between layers); see the issue's note
+/// for d = 1 cm. Ignored until it passes.
+#[test]
+#[ignore]
+fn sand_column_carries_its_weight_within_5_percent() {
+    for d in [0.02, 0.01] {
+        let (_, err, _) = sand_column_at_rest(d);
+        assert!(err < 0.05, "d = {d} m: vertical stress per-particle error {err}");
+    }
+}
+
+/// A granular run resumed from a checkpoint, on another thread count, is
+/// the same run: the stress and plastic strain are the state that the
+/// checkpoint carries (`SolidStore::sxx` .. `plastic_strain`). A column of
+/// sand on a rough floor, released as a cube so that it yields and flows.
+#[test]
+fn resumed_granular_run_is_bitwise_the_uninterrupted_run() {
+    use porosph::io::checkpoint::{load_checkpoint, write_checkpoint, RunInfo};
+    let text = column(0.02, 0.4, 0.2, 0.1, "", "0.002").replace("max = [0.4, 0.2, 0.1] }", "max = [0.12, 0.2, 0.1] }");
+    let info = RunInfo {
+        frames_written: 0,
+        next_frame_time: 0.0,
+        frame_every: 0.01,
+        stop_time: None,
+        stop_step: None,
+        checkpoint_every: "10steps".to_string(),
+        keep: 1,
+    };
+    let dir = common::TempDir::new("granular-restart");
+    let ckpt = dir.path("ckpt.h5");
+    let (n, m) = (40, 40);
+    let steps = |sim: &mut Simulation, k: u64| {
+        for _ in 0..k {
+            sim.step().unwrap_or_else(|e| panic!("{e}"));
+        }
+    };
+    common::with_threads(2, || {
+        let mut straight = Simulation::new(scene_text(&text));
+        steps(&mut straight, n + m);
+        let mut first = Simulation::new(scene_text(&text));
+        steps(&mut first, n);
+        write_checkpoint(&ckpt, &first, &info, None).unwrap_or_else(|e| panic!("{e}"));
+        let resumed = common::with_threads(1, || {
+            let (mut resumed, _) = load_checkpoint(&ckpt).unwrap_or_else(|e| panic!("{e}"));
+            steps(&mut resumed, m);
+            resumed
+        });
+        let plastic = straight.solids.plastic_strain.iter().copied().fold(0.0, f32::max);
+        println!("{} grains, t = {:.3} s, largest plastic strain {plastic:.3}", straight.solids.len(), straight.time);
+        assert!(plastic > 1e-2, "the test needs a flowing column");
+        assert_eq!(resumed.dt.to_bits(), straight.dt.to_bits());
+        common::assert_same_bits(&common::solid_bits(&resumed.solids), &common::solid_bits(&straight.solids));
+    });
+}
