@@ -141,7 +141,12 @@ pub fn stress_update(
             // The walls' mirror velocity (module doc): v_b - v_i = -2 v_i
             // (no slip) or -2 (v_i . n) n (free slip).
             let wall = wall_sum(&sb[b], q, walls);
-            let vn = if m.free_slip { v[i].dot(normal(wall)) * normal(wall) } else { v[i] };
+            let vn = if m.free_slip {
+                let n = normal(wall);
+                v[i].dot(n) * n
+            } else {
+                v[i]
+            };
             l -= outer(2.0 * vn, wall);
             let (next, d_lambda, _) = m.cone.stress_step(*s, l, dt, m.shear, m.bulk);
             *s = next;

@@ -35,12 +35,11 @@ pub struct Granular {
     sound_speed: Vec<f32>,
     /// Particle spacing h, m.
     h: f32,
-    /// Volume of each particle, h^3 (store order), m^3.
-    volume: Vec<f32>,
     // Sorted scratch, kept for its capacity.
     s_material: Vec<u32>,
     s_body: Vec<u32>,
     s_mass: Vec<f32>,
+    /// The particle volumes V = h^3.
     s_volume: Vec<f32>,
     s_pore: Vec<f32>,
     s_fixed: Vec<u32>,
@@ -76,7 +75,6 @@ impl Granular {
             materials,
             sound_speed,
             h,
-            volume: vec![h * h * h; solids.len()],
             s_material: Vec::new(),
             s_body: Vec::new(),
             s_mass: Vec::new(),
@@ -116,22 +114,15 @@ impl Granular {
     fn predict(&mut self, s: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32, near: &Current, v: &mut [Vec3]) {
         let n = s.len();
         let perm = near.perm;
-        let gather_u32 = |dst: &mut Vec<u32>, src: &[u32]| {
-            dst.clear();
-            dst.extend(perm.iter().map(|&i| src[i as usize]));
-        };
-        gather_u32(&mut self.s_material, &self.material);
-        gather_u32(&mut self.s_body, &s.body);
-        gather_u32(&mut self.s_fixed, &s.fixed);
-        let gather_f32 = |dst: &mut Vec<f32>, src: &[f32]| {
-            dst.clear();
-            dst.extend(perm.iter().map(|&i| src[i as usize]));
-        };
-        gather_f32(&mut self.s_mass, &s.mass);
-        gather_f32(&mut self.s_volume, &self.volume);
-        gather_f32(&mut self.s_plastic, &s.plastic_strain);
+        gather(perm, &self.material, &mut self.s_material);
+        gather(perm, &s.body, &mut self.s_body);
+        gather(perm, &s.fixed, &mut self.s_fixed);
+        gather(perm, &s.mass, &mut self.s_mass);
+        gather(perm, &s.plastic_strain, &mut self.s_plastic);
+        self.s_volume.clear();
+        self.s_volume.resize(n, self.h * self.h * self.h);
         match pore {
-            Some(p) => gather_f32(&mut self.s_pore, p),
+            Some(p) => gather(perm, p, &mut self.s_pore),
             None => {
                 self.s_pore.clear();
                 self.s_pore.resize(n, 0.0);
@@ -184,7 +175,6 @@ impl Granular {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         4 * (self.material.capacity()
-            + self.volume.capacity()
             + self.s_material.capacity()
             + self.s_body.capacity()
             + self.s_mass.capacity()
@@ -195,6 +185,12 @@ impl Granular {
             + 36 * self.s_sigma.capacity()
             + 12 * (self.s_v[0].capacity() + self.s_v[1].capacity())
     }
+}
+
+/// dst = src in the sorted order `perm` (sorted index -> store index).
+fn gather<T: Copy>(perm: &[u32], src: &[T], dst: &mut Vec<T>) {
+    dst.clear();
+    dst.extend(perm.iter().map(|&i| src[i as usize]));
 }
 
 /// Elastic and granular bodies in one scene: [`Peer2018`] for all (the
