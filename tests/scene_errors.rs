@@ -781,14 +781,24 @@ fn granular_edited(keys: &str) -> String {
 
 #[test]
 fn granular_solid_parses_with_its_values_and_defaults() {
-    use porosph::scene::SolidMaterial;
+    use porosph::scene::{SolidMaterial, YieldCone};
     let scene =
         parse(&granular_edited("model = \"granular\"\nfriction_angle = 35.0\ncohesion = 200.0")).expect("valid");
     let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular: {:?}", scene.solids[0].model) };
-    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (35.0, 0.0, 200.0, false));
+    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (35.0, 0.0, 200.0, [false; 3]));
     let scene = parse(&granular_edited("model = \"granular\"")).expect("valid");
     let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
-    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (30.0, 0.0, 0.0, false));
+    assert_eq!((g.friction_angle, g.dilatancy_angle, g.cohesion, g.wall_slip), (30.0, 0.0, 0.0, [false; 3]));
+    assert_eq!(g.yield_cone, YieldCone::PlaneStrain);
+    let scene = parse(&granular_edited(
+        "model = \"granular\"\nwall_slip = [\"z\", \"x\"]\nyield_cone = \"triaxial_compression\"",
+    ))
+    .expect("valid");
+    let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
+    assert_eq!((g.wall_slip, g.yield_cone), ([true, false, true], YieldCone::TriaxialCompression));
+    let scene = parse(&granular_edited("model = \"granular\"\nwall_slip = true")).expect("valid");
+    let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
+    assert_eq!(g.wall_slip, [true; 3]);
     assert_eq!(parse(&granular_edited("")).expect("valid").solids[0].model, SolidMaterial::Elastic);
 }
 
@@ -801,6 +811,22 @@ fn granular_keys_are_checked() {
     assert_rejected(&g("friction_angle = 90.0"), "solid[0].friction_angle", "in (0, 90)");
     assert_rejected(&g("dilatancy_angle = 40.0"), "solid[0].dilatancy_angle", "<= friction_angle = 30");
     assert_rejected(&g("cohesion = -1.0"), "solid[0].cohesion", "");
+    assert_rejected(
+        &g("wall_slip = [\"w\"]"),
+        "solid[0].wall_slip",
+        "list of axes \"x\", \"y\", \"z\", found axis \"w\"",
+    );
+    assert_rejected(&g("wall_slip = 1"), "solid[0].wall_slip", "");
+    assert_rejected(&g("yield_cone = \"cone\""), "solid[0].yield_cone", "");
+    // The wet cohesion law needs pores, a cohesion >= 0 and n > 2.
+    assert_rejected(&g("wet_cohesion = 500.0"), "solid[0].wet_cohesion", "needs a [solid.porous] table");
+    let wet =
+        |k: &str| porous_edited("body = \"sponge\"\n", &format!("body = \"sponge\"\nmodel = \"granular\"\n{k}\n"));
+    assert!(parse(&wet("wet_cohesion = 500.0\nsuction_n = 3.0")).is_ok());
+    assert_rejected(&wet("wet_cohesion = -5.0"), "solid[0].wet_cohesion", ">= 0, found -5");
+    assert_rejected(&wet("suction_n = 2.0"), "solid[0].suction_n", "> 2");
+    assert_rejected(&granular_edited("suction_n = 4.0"), "solid[0].suction_n", "model is \"elastic\"");
+    assert_rejected(&granular_edited("yield_cone = \"plane_strain\""), "solid[0].yield_cone", "model is \"elastic\"");
     // A body is elastic or granular throughout.
     let two = format!(
         "{}\n[[solid]]\nname = \"lid\"\nbox = {{ min = [0.3, 0.1, 0.0], max = [0.4, 0.12, 0.1] }}\ndensity = 600.0\nshear_modulus = 2e4\nlame_lambda = 1e4\nbody = \"sponge\"\n",

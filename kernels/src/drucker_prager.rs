@@ -13,16 +13,33 @@
 //!
 //!   f(sigma) = alpha_phi I1 + sqrt(J2) - k_c <= 0,
 //!
-//! here with the cone through the Mohr-Coulomb compression meridian
-//! (triaxial compression fails at the Mohr-Coulomb value):
+//! with phi the friction angle, c the cohesion and the plastic potential
+//! g = alpha_psi I1 + sqrt(J2) of the dilatancy angle psi (psi = 0: no
+//! plastic volume change, Bui's choice for sand; psi = phi: associated
+//! flow). Perfect plasticity (no hardening). A cone meets the Mohr-Coulomb
+//! pyramid only along some stress paths, so it is fitted to one:
 //!
+//! - [`DruckerPrager::compression_cone`], through the compression meridian
+//!   (triaxial compression fails at the Mohr-Coulomb value):
 //!   alpha_phi = 2 sin(phi) / (sqrt(3) (3 - sin(phi))),
-//!   k_c = 6 c cos(phi) / (sqrt(3) (3 - sin(phi))),
-//!
-//! phi the friction angle, c the cohesion. The plastic potential
-//! g = alpha_psi I1 + sqrt(J2) has the dilatancy angle psi in the same
-//! form (psi = 0: no plastic volume change, Bui's choice for sand; psi =
-//! phi: associated flow). Perfect plasticity (no hardening).
+//!   k_c = 6 c cos(phi) / (sqrt(3) (3 - sin(phi))), alpha_psi alike.
+//! - [`DruckerPrager::plane_strain_cone`]: plastic flow in plane strain
+//!   (no strain along one axis) fails at the Mohr-Coulomb value, as in Bui
+//!   et al.'s Eqs. 21-22, here for any dilatancy. With
+//!   alpha_psi = tan(psi) / sqrt(9 + 12 tan^2(psi)) and
+//!   r = sqrt(1 - 3 alpha_psi^2): zero plastic strain out of the plane sets
+//!   the out-of-plane deviator to s_zz = -2 alpha_psi sqrt(J2), hence
+//!   sqrt(J2) = tau / r and I1 = 3 s_c - 3 alpha_psi tau / r for the Mohr
+//!   circle of centre s_c and radius tau; f = 0 is then tau + s_c sin(phi)
+//!   = c cos(phi) (Mohr-Coulomb) for
+//!   alpha_phi = sin(phi) / (3 (r + alpha_psi sin(phi))),
+//!   k_c = c cos(phi) (1 - 3 alpha_phi alpha_psi) / r.
+//!   For psi = phi this is Bui's tan(phi) / sqrt(9 + 12 tan^2(phi)) and
+//!   3 c / sqrt(9 + 12 tan^2(phi)); for psi = 0, sin(phi) / 3 and c cos(phi).
+//!   At phi = 30 degrees its alpha_phi is 0.167 against the compression
+//!   cone's 0.231, and in plane-strain compression at 100 kPa the
+//!   compression cone flows at 1.84 times the Mohr-Coulomb axial stress
+//!   (the test below).
 //!
 //! The return mapping (closed-form for this cone; e.g. de Souza Neto,
 //! Peric and Owen 2008, "Computational Methods for Plasticity", §8.3.3,
@@ -52,7 +69,7 @@ fn iso(a: f32) -> Mat3 {
 }
 
 /// The Drucker-Prager cone of a granular material, fitted to Mohr-Coulomb
-/// in triaxial compression.
+/// along one stress path (module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DruckerPrager {
     /// alpha_phi (dimensionless).
@@ -88,6 +105,22 @@ impl DruckerPrager {
             alpha_phi: cone_alpha(phi) as f32,
             alpha_psi: cone_alpha(psi) as f32,
             k_c: (6.0 * c * phi.cos() / (3f64.sqrt() * (3.0 - phi.sin()))) as f32,
+        }
+    }
+
+    /// The cone that fails at the Mohr-Coulomb value in plane-strain flow
+    /// (module doc), for friction angle `phi`, dilatancy angle `psi`
+    /// (radians, 0 <= psi <= phi < pi/2) and cohesion `c` (Pa, >= 0).
+    pub fn plane_strain_cone(phi: f32, psi: f32, c: f32) -> Self {
+        let (phi, psi, c) = (f64::from(phi), f64::from(psi), f64::from(c));
+        let t = psi.tan();
+        let a_psi = t / (9.0 + 12.0 * t * t).sqrt();
+        let r = (1.0 - 3.0 * a_psi * a_psi).sqrt();
+        let a_phi = phi.sin() / (3.0 * (r + a_psi * phi.sin()));
+        Self {
+            alpha_phi: a_phi as f32,
+            alpha_psi: a_psi as f32,
+            k_c: (c * phi.cos() * (1.0 - 3.0 * a_phi * a_psi) / r) as f32,
         }
     }
 
@@ -322,5 +355,68 @@ mod tests {
             assert!(rel <= 1e-4, "c {c} psi {psi}: sigma_1 at failure {peak} Pa vs {sigma1_ref} Pa ({rel:.2e})");
             assert!((-sigma.x - sigma1_ref).abs() <= 1e-4 * sigma1_ref, "perfect plasticity: a plateau");
         }
+    }
+
+    /// Plane-strain compression (a biaxial test), strain-driven along x with
+    /// the stress along y held at the confining stress and no strain along
+    /// z: once the flow is steady (the out-of-plane stress has settled) the
+    /// axial stress is the Mohr-Coulomb value sigma_1 = N sigma_3 + 2 c
+    /// sqrt(N), N = (1 + sin phi) / (1 - sin phi), which the plane-strain
+    /// cone matches for any dilatancy (module doc). Reference: Mohr-Coulomb;
+    /// within 1e-4 relative (f32 stress increments); the compression cone
+    /// on the same path fails well above it.
+    #[test]
+    fn plane_strain_compression_flows_at_the_mohr_coulomb_value() {
+        let phi = 30.0 * DEG;
+        for (c, psi) in [(0.0f32, 0.0f32), (1e4, 0.0), (0.0, 30.0 * DEG), (1e4, 10.0 * DEG)] {
+            let (mu, lambda) = (3.85e6f32, 5.77e6f32);
+            let bulk = lambda + 2.0 * mu / 3.0;
+            let confining = 1e5f32;
+            let n = (1.0 + phi.sin()) / (1.0 - phi.sin());
+            let sigma1_ref = n * confining + 2.0 * c * n.sqrt();
+            let hooke = |e: Vec3| Vec3::splat(lambda * (e.x + e.y + e.z)) + 2.0 * mu * e;
+            let axial = |dp: DruckerPrager| {
+                let mut sigma = Vec3::splat(-confining);
+                for _ in 0..3000 {
+                    let d_axial = -1e-4f32;
+                    let lateral_stress = |e_lat: f32| {
+                        let trial = sigma + hooke(Vec3::new(d_axial, e_lat, 0.0));
+                        let (s, _, _) = dp.return_map(Mat3::from_diagonal(trial), mu, bulk);
+                        (s.y_axis.y + confining, s)
+                    };
+                    let (mut x0, mut x1) = (0.0f32, -d_axial * lambda / (lambda + 2.0 * mu));
+                    let (mut g0, _) = lateral_stress(x0);
+                    let mut out = lateral_stress(x1);
+                    for _ in 0..50 {
+                        if out.0.abs() <= 1e-6 * confining || out.0 == g0 {
+                            break;
+                        }
+                        let x2 = x1 - out.0 * (x1 - x0) / (out.0 - g0);
+                        (x0, g0, x1) = (x1, out.0, x2);
+                        out = lateral_stress(x1);
+                    }
+                    assert!(out.0.abs() <= 1e-5 * confining, "lateral stress off by {} Pa", out.0);
+                    sigma = Vec3::new(out.1.x_axis.x, out.1.y_axis.y, out.1.z_axis.z);
+                }
+                -sigma.x
+            };
+            let got = axial(DruckerPrager::plane_strain_cone(phi, psi, c));
+            let rel = (got - sigma1_ref).abs() / sigma1_ref;
+            assert!(rel <= 1e-4, "c {c} psi {psi}: sigma_1 {got} Pa vs Mohr-Coulomb {sigma1_ref} Pa ({rel:.2e})");
+            let stronger = axial(DruckerPrager::compression_cone(phi, psi, c)) / sigma1_ref;
+            assert!(stronger > 1.2, "the compression cone in plane strain: {stronger} x Mohr-Coulomb");
+        }
+    }
+
+    /// For associated flow the plane-strain cone is Bui et al.'s Eqs. 21-22.
+    #[test]
+    fn associated_plane_strain_cone_is_buis() {
+        let (phi, c) = (30.0 * DEG, 1e4f32);
+        let dp = DruckerPrager::plane_strain_cone(phi, phi, c);
+        let q = (9.0 + 12.0 * phi.tan().powi(2)).sqrt();
+        assert!((dp.alpha_phi - phi.tan() / q).abs() <= 1e-6, "{} vs {}", dp.alpha_phi, phi.tan() / q);
+        assert!((dp.k_c - 3.0 * c / q).abs() <= 1e-6 * c, "{} vs {}", dp.k_c, 3.0 * c / q);
+        let dp = DruckerPrager::plane_strain_cone(phi, 0.0, c);
+        assert!((dp.alpha_phi - phi.sin() / 3.0).abs() <= 1e-7 && (dp.k_c - c * phi.cos()).abs() <= 1e-6 * c);
     }
 }

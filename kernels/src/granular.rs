@@ -22,13 +22,19 @@
 //! a wall without slip (whose friction is then the material's own: the
 //! plastic return bounds the shear stress there), v_b = v_i - 2 (v_i.n) n
 //! with free slip (n the direction of sum_b V_b grad W_ib; the wall force
-//! then keeps only its normal part). The mirror velocity, not v_b = 0, is
+//! then keeps only its normal part). Slip can be chosen per axis: a grain
+//! slips when the walls facing the axis closest to its n do (the smooth
+//! side walls of a channel with a rough floor). The mirror velocity, not v_b = 0, is
 //! what makes the wall terms of L and of the force adjoint, so that the
 //! walls do no work on the grains beyond the stress power: with v_b = 0
 //! (measured on a column of sand at rest in a box, d = 2 cm) the column
 //! never settled, at an RMS speed of 5-10 mm/s that only the artificial
 //! viscosity held down (60 mm/s at alpha = 0.1, 2-3 mm/s at 2), most of it
 //! next to the walls; with the mirror it comes to rest (< 1e-5 m/s).
+//!
+//! A porous granular body's cohesion follows its saturation
+//! ([`suction_shape`]): dry and saturated sand hold together by the dry
+//! cohesion alone, damp sand by more.
 //!
 //! Both passes read only the last pass's values and run over the cache
 //! blocks of the pair lists, so they are deterministic for any thread count.
@@ -50,8 +56,68 @@ pub struct Material {
     pub shear: f32,
     /// Bulk modulus K = lambda + 2 G / 3, Pa.
     pub bulk: f32,
-    /// Walls are frictionless for this material (else no slip).
-    pub free_slip: bool,
+    /// Per axis x, y, z: the walls facing it are frictionless for this
+    /// material (else no slip).
+    pub free_slip: [bool; 3],
+    /// The k_c of the wet cohesion at its largest, Pa (0: no wet cohesion).
+    pub wet_k_c: f32,
+    /// van Genuchten's n of the wet cohesion law (> 2).
+    pub suction_n: f32,
+}
+
+/// The wet cohesion law, normalised: the suction stress of Lu & Likos
+/// (2006, "Suction stress characteristic curve for unsaturated soil", J.
+/// Geotech. Geoenviron. Eng. 132, Eq. 18 with van Genuchten's retention
+/// curve), sigma_s = -(S / a) (S^(-n/(n-1)) - 1)^(1/n), divided by its
+/// largest value, for the saturation S in [0, 1] (no residual water). With
+/// m = n / (n - 1) its largest value is at S* = (1 - m/n)^(1/m) =
+/// ((n - 2) / (n - 1))^((n - 1)/n) and is S* (n - 2)^(-1/n) / a. It is 0 for
+/// dry (S^(1 - 1/(n-1)) -> 0, which needs n > 2) and saturated (S = 1)
+/// pores: no menisci, no suction. The apparent cohesion of the suction
+/// stress is -sigma_s tan(phi) (Lu & Likos); a scene gives its largest
+/// value, `wet_cohesion`, which folds the retention curve's 1/a and tan(phi)
+/// into one number.
+pub fn suction_shape(s: f32, n: f32) -> f32 {
+    if !(s > 0.0 && s < 1.0) {
+        return 0.0;
+    }
+    let (s, n) = (f64::from(s), f64::from(n));
+    let m = n / (n - 1.0);
+    let g = |s: f64| s * (s.powf(-m) - 1.0).powf(1.0 / n);
+    let s_star = (1.0 - m / n).powf(1.0 / m);
+    (g(s) / (s_star * (n - 2.0).powf(-1.0 / n))) as f32
+}
+
+impl Material {
+    /// The cone at saturation `s` (the wet cohesion law,
+    /// [`suction_shape`]).
+    #[inline(always)]
+    fn cone_at(&self, s: f32) -> DruckerPrager {
+        let mut cone = self.cone;
+        if self.wet_k_c > 0.0 {
+            cone.k_c += self.wet_k_c * suction_shape(s, self.suction_n);
+        }
+        cone
+    }
+
+    /// Whether a grain slips on the wall of unit normal `n`: the walls of
+    /// the axis that `n` is closest to (module doc).
+    #[inline(always)]
+    fn slips(&self, n: Vec3) -> bool {
+        let [x, y, z] = self.free_slip;
+        if x == y && y == z {
+            return x;
+        }
+        let a = n.abs();
+        let axis = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        self.free_slip[axis]
+    }
 }
 
 /// The solid particles in the sorted order of the solid pair lists.
@@ -69,6 +135,8 @@ pub struct Grains<'a> {
     pub volume: &'a [f32],
     /// eta p^pore, the pore stress, Pa (0 without).
     pub pore: &'a [f32],
+    /// Saturation S = sum_k phi_sk / porosity in [0, 1] (0 without pores).
+    pub saturation: &'a [f32],
 }
 
 /// The walls the grains touch.
@@ -141,14 +209,10 @@ pub fn stress_update(
             // The walls' mirror velocity (module doc): v_b - v_i = -2 v_i
             // (no slip) or -2 (v_i . n) n (free slip).
             let wall = wall_sum(&sb[b], q, walls);
-            let vn = if m.free_slip {
-                let n = normal(wall);
-                v[i].dot(n) * n
-            } else {
-                v[i]
-            };
+            let n = normal(wall);
+            let vn = if m.slips(n) { v[i].dot(n) * n } else { v[i] };
             l -= outer(2.0 * vn, wall);
-            let (next, d_lambda, _) = m.cone.stress_step(*s, l, dt, m.shear, m.bulk);
+            let (next, d_lambda, _) = m.cone_at(grains.saturation[i]).stress_step(*s, l, dt, m.shear, m.bulk);
             *s = next;
             *ep += d_lambda;
         }
@@ -207,7 +271,6 @@ pub fn accelerate(
                 continue;
             }
             let c = visc.sound_speed[mat];
-            let free_slip = materials[mat].free_slip;
             let (mi, vi, xi) = (grains.mass[i], grains.volume[i], pos(grains.x, i));
             let rho_i = mi / vi;
             let si = sigma[i] - Mat3::from_diagonal(Vec3::splat(grains.pore[i]));
@@ -231,6 +294,7 @@ pub fn accelerate(
             let wall = wall_sum(blk, q, walls);
             let mut fw = 2.0 * vi * (si * wall);
             let n = normal(wall);
+            let free_slip = materials[mat].slips(n);
             let vw = if free_slip { 2.0 * v[i].dot(n) * n } else { 2.0 * v[i] };
             for p in blk.range(q).filter(|_| !walls.volume.is_empty()) {
                 let k = blk.j[p] as usize;
@@ -244,4 +308,32 @@ pub fn accelerate(
             *o = v[i] + dt * (g + (f + fw) / mi);
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::suction_shape;
+
+    /// The wet cohesion law against Lu & Likos' closed form: 0 when dry and
+    /// when saturated, 1 at its peak S* = ((n - 2) / (n - 1))^((n - 1) / n)
+    /// and below 1 elsewhere; at other S the ratio of their Eq. 18 to its
+    /// peak, computed here independently (f64, a fine scan for the peak).
+    #[test]
+    fn suction_shape_is_lu_and_likos_normalised() {
+        for n in [2.5f64, 4.0, 8.0] {
+            let sigma_s = |s: f64| s * (s.powf(-n / (n - 1.0)) - 1.0).powf(1.0 / n);
+            let peak = (1..100_000).map(|k| sigma_s(k as f64 / 100_000.0)).fold(0.0, f64::max);
+            let s_star = ((n - 2.0) / (n - 1.0)).powf((n - 1.0) / n);
+            assert!((f64::from(suction_shape(s_star as f32, n as f32)) - 1.0).abs() < 1e-5, "n {n}");
+            for s in [0.05, 0.2, 0.5, 0.9, 0.99] {
+                let want = sigma_s(s) / peak;
+                let got = f64::from(suction_shape(s as f32, n as f32));
+                assert!((got - want).abs() < 1e-5, "n {n}, S {s}: {got} vs {want}");
+                assert!(got < 1.0);
+            }
+            assert_eq!(suction_shape(0.0, n as f32), 0.0);
+            assert_eq!(suction_shape(1.0, n as f32), 0.0);
+            assert!(suction_shape(1e-6, n as f32) < 0.05, "dry: {}", suction_shape(1e-6, n as f32));
+        }
+    }
 }

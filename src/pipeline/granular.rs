@@ -13,7 +13,7 @@
 //! walls' and other bodies' pressure forces to the last sub-step's velocity.
 
 use super::solid::{Current, Peer2018, SolidModel, SolidStats};
-use crate::scene::{Scene, SolidMaterial};
+use crate::scene::{Scene, SolidMaterial, YieldCone};
 use crate::store::SolidStore;
 use glam::{Mat3, Vec3};
 use porosph_kernels::drucker_prager::DruckerPrager;
@@ -33,6 +33,8 @@ pub struct Granular {
     materials: Vec<Material>,
     /// sqrt((K + 4 G / 3) / rho) of each material, m/s.
     sound_speed: Vec<f32>,
+    /// Porosity e of each material (0 if not porous).
+    porosity: Vec<f32>,
     /// Particle spacing h, m.
     h: f32,
     // Sorted scratch, kept for its capacity.
@@ -42,6 +44,8 @@ pub struct Granular {
     /// The particle volumes V = h^3.
     s_volume: Vec<f32>,
     s_pore: Vec<f32>,
+    /// Saturation S = sum_k phi_sk / e.
+    s_saturation: Vec<f32>,
     s_fixed: Vec<u32>,
     s_sigma: Vec<Mat3>,
     s_plastic: Vec<f32>,
@@ -55,14 +59,30 @@ impl Granular {
     pub fn new(scene: &Scene, solids: &SolidStore) -> Option<Self> {
         let mut materials = Vec::new();
         let mut sound_speed = Vec::new();
+        let mut porosity = Vec::new();
         let mut of_entry = vec![NOT_GRANULAR; scene.solids.len()];
         for (e, s) in scene.solids.iter().enumerate() {
             if let SolidMaterial::Granular(g) = s.model {
                 let deg = std::f32::consts::PI / 180.0;
-                let cone = DruckerPrager::compression_cone(g.friction_angle * deg, g.dilatancy_angle * deg, g.cohesion);
+                let (phi, psi) = (g.friction_angle * deg, g.dilatancy_angle * deg);
+                let cone_of = |c: f32| match g.yield_cone {
+                    YieldCone::PlaneStrain => DruckerPrager::plane_strain_cone(phi, psi, c),
+                    YieldCone::TriaxialCompression => DruckerPrager::compression_cone(phi, psi, c),
+                };
+                let cone = cone_of(g.cohesion);
                 let bulk = s.lame_lambda + 2.0 * s.shear_modulus / 3.0;
                 of_entry[e] = materials.len() as u32;
-                materials.push(Material { cone, shear: s.shear_modulus, bulk, free_slip: g.wall_slip });
+                // k_c is linear in the cohesion: the wet part's own cone.
+                let wet_k_c = cone_of(g.wet_cohesion).k_c;
+                materials.push(Material {
+                    cone,
+                    shear: s.shear_modulus,
+                    bulk,
+                    free_slip: g.wall_slip,
+                    wet_k_c,
+                    suction_n: g.suction_n,
+                });
+                porosity.push(s.porous.as_ref().map_or(0.0, |p| p.porosity));
                 sound_speed.push(((bulk + 4.0 * s.shear_modulus / 3.0) / s.density).sqrt());
             }
         }
@@ -74,12 +94,14 @@ impl Granular {
             material: solids.body.iter().map(|&b| of_entry[b as usize]).collect(),
             materials,
             sound_speed,
+            porosity,
             h,
             s_material: Vec::new(),
             s_body: Vec::new(),
             s_mass: Vec::new(),
             s_volume: Vec::new(),
             s_pore: Vec::new(),
+            s_saturation: Vec::new(),
             s_fixed: Vec::new(),
             s_sigma: Vec::new(),
             s_plastic: Vec::new(),
@@ -128,6 +150,14 @@ impl Granular {
                 self.s_pore.resize(n, 0.0);
             }
         }
+        self.s_saturation.clear();
+        self.s_saturation.extend(perm.iter().map(|&i| {
+            let i = i as usize;
+            match self.porosity.get(self.material[i] as usize) {
+                Some(&e) if e > 0.0 => (s.saturation[i] / e).clamp(0.0, 1.0),
+                _ => 0.0,
+            }
+        }));
         self.s_sigma.clear();
         self.s_sigma.extend(perm.iter().map(|&i| s.granular_stress(i as usize)));
         for b in &mut self.s_v {
@@ -153,6 +183,7 @@ impl Granular {
                 mass: &self.s_mass,
                 volume: &self.s_volume,
                 pore: &self.s_pore,
+                saturation: &self.s_saturation,
             };
             let [v0, v1] = &mut self.s_v;
             stress_update(pairs, grains, walls, &self.materials, v0, &mut self.s_sigma, &mut self.s_plastic, dts);
@@ -180,6 +211,8 @@ impl Granular {
             + self.s_mass.capacity()
             + self.s_volume.capacity()
             + self.s_pore.capacity()
+            + self.s_saturation.capacity()
+            + self.porosity.capacity()
             + self.s_fixed.capacity()
             + self.s_plastic.capacity())
             + 36 * self.s_sigma.capacity()

@@ -2,6 +2,7 @@
 
 use crate::io::{ArrayData, Frame, PointArray};
 use crate::pipeline::Simulation;
+use crate::scene::SolidMaterial;
 
 /// `kind` values in frames.
 pub mod kind {
@@ -15,6 +16,12 @@ const SOLID_COLOR: [f32; 3] = [0.80, 0.62, 0.38];
 /// Display colour of a saturated porous solid (linear RGB); a solid's
 /// colour goes from [`SOLID_COLOR`] to this with its saturation.
 const WET_COLOR: [f32; 3] = [0.85, 0.33, 0.05];
+/// Display colour of dry sand (granular solids, linear RGB).
+const SAND_DRY_COLOR: [f32; 3] = [0.72, 0.55, 0.30];
+/// Display colour of saturated sand (linear RGB): wet sand is darker; a
+/// granular solid's colour goes from [`SAND_DRY_COLOR`] to this with its
+/// saturation.
+const SAND_WET_COLOR: [f32; 3] = [0.22, 0.14, 0.07];
 /// Inner (absorbed) fluid is drawn in its phase colour times this, so outer
 /// and inner phases can be told apart (the frame's `color`; `porosph render
 /// --color saturation` divides it out again).
@@ -30,7 +37,8 @@ impl Simulation {
     /// `strain_trace`, `saturation`, `pore_pressure` (Pa) and, granular ones,
     /// `plastic_strain`; those are 0 on fluid and walls. Fluid particles carry `alpha` and `beta` (outer and
     /// inner fractions, K components each, 0 elsewhere). Solids have the
-    /// density of their body.
+    /// density of their body; their `color` goes from dry to wet with the
+    /// saturation, in sand colours for granular ones.
     pub fn frame(&self) -> Frame {
         let (f, w, s) = (&self.fluid, &self.walls, &self.solids);
         let (nf, nw, ns) = (f.len(), w.len(), s.len());
@@ -79,10 +87,15 @@ impl Simulation {
             color.extend([0.6, 0.6, 0.6]);
         }
         for i in 0..ns {
-            let e =
-                self.scene.solids.get(s.body[i] as usize).and_then(|b| b.porous.as_ref()).map_or(1.0, |p| p.porosity);
+            let body = self.scene.solids.get(s.body[i] as usize);
+            let e = body.and_then(|b| b.porous.as_ref()).map_or(1.0, |p| p.porosity);
             let t = (s.saturation[i] / e).clamp(0.0, 1.0);
-            color.extend((0..3).map(|c| SOLID_COLOR[c] + t * (WET_COLOR[c] - SOLID_COLOR[c])));
+            let (dry, wet) = if body.is_some_and(|b| matches!(b.model, SolidMaterial::Granular(_))) {
+                (SAND_DRY_COLOR, SAND_WET_COLOR)
+            } else {
+                (SOLID_COLOR, WET_COLOR)
+            };
+            color.extend((0..3).map(|c| dry[c] + t * (wet[c] - dry[c])));
         }
         Frame {
             time: self.time,

@@ -10,7 +10,7 @@
 //! more than one value (max_dt <= end_time, phase names, exactly one
 //! shape) is checked in `parse.rs`, which builds the [`super::Scene`].
 
-use super::{Motion, PorousPhase, Simulation, SolidModelChoice};
+use super::{Motion, PorousPhase, Simulation, SolidModelChoice, YieldCone};
 use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
 use serde::Deserialize;
@@ -315,10 +315,17 @@ pub(super) struct SolidFile {
     pub model: SolidModelChoice,
     /// The friction angle phi in degrees (granular only)
     ///
-    /// The Drucker-Prager cone through the Mohr-Coulomb compression
-    /// meridian; default 30.
+    /// The Mohr-Coulomb angle that the Drucker-Prager cone is fitted to
+    /// (see `yield_cone`); default 30.
     #[schemars(extend("exclusiveMinimum" = 0, "exclusiveMaximum" = 90))]
     pub friction_angle: Option<f32>,
+    /// Which stress path the Drucker-Prager cone matches Mohr-Coulomb on (granular only)
+    ///
+    /// `"plane_strain"` (default): flow without strain along one axis (a
+    /// quasi-2D channel, a long bank; Bui et al. 2008). `"triaxial_compression"`:
+    /// the compression meridian (a triaxial test), about 1.8 times stronger
+    /// in plane strain at 30 degrees.
+    pub yield_cone: Option<YieldCone>,
     /// The dilatancy angle psi in degrees (granular only)
     ///
     /// 0 (default): no plastic volume change; at most the friction angle.
@@ -329,12 +336,41 @@ pub(super) struct SolidFile {
     /// The dry value; 0 (default) for sand that holds no tension.
     #[schemars(range(min = 0))]
     pub cohesion: Option<f32>,
-    /// Whether the walls are frictionless for this solid (granular only)
+    /// The wet cohesion in Pa (granular only)
+    ///
+    /// The largest cohesion that partly filled pores add; needs
+    /// `[solid.porous]`. The cohesion is `cohesion + wet_cohesion
+    /// g(S) / g_max` at saturation S = sum_k phi_sk / porosity, g the
+    /// suction stress of Lu & Likos (2006): 0 when dry and when saturated,
+    /// largest in between (kernels/src/granular.rs); default 0.
+    #[schemars(range(min = 0))]
+    pub wet_cohesion: Option<f32>,
+    /// The van Genuchten n of the wet cohesion law (granular only)
+    ///
+    /// The pore size spread of the retention curve; n > 2 (at n <= 2 the
+    /// law does not vanish when dry); sand 3-8; default 4 (the wettest
+    /// cohesion at S = 0.74).
+    #[schemars(extend("exclusiveMinimum" = 2))]
+    pub suction_n: Option<f32>,
+    /// Which walls are frictionless for this solid (granular only)
     ///
     /// false (default): the walls hold the grains without slip, so their
-    /// friction is the material's own (a rough base); true: free slip (a
-    /// smooth, e.g. glass, wall).
-    pub wall_slip: Option<bool>,
+    /// friction is the material's own (a rough base); true: free slip on
+    /// every wall (smooth, e.g. glass, walls); a list of axes, e.g.
+    /// `["z"]`: free slip on the walls facing those axes only (the smooth
+    /// side walls of a channel with a rough floor). A grain's wall is the
+    /// axis its wall normal is closest to.
+    pub wall_slip: Option<WallSlipFile>,
+}
+
+/// `wall_slip`: every wall, none, or the walls facing some axes.
+#[derive(Debug, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub(super) enum WallSlipFile {
+    /// true: free slip on every wall; false: on none.
+    All(bool),
+    /// Free slip on the walls facing these axes ("x", "y", "z").
+    Axes(Vec<String>),
 }
 
 /// `fixed = { box = .. }`: the kinematic part of a solid.

@@ -388,6 +388,18 @@ pub enum SolidModelChoice {
     Granular,
 }
 
+/// `yield_cone`: the stress path on which a granular solid's
+/// Drucker-Prager cone matches Mohr-Coulomb (kernels/src/drucker_prager.rs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum YieldCone {
+    /// `"plane_strain"` (default): plastic flow without strain along one axis.
+    #[default]
+    PlaneStrain,
+    /// `"triaxial_compression"`: the compression meridian.
+    TriaxialCompression,
+}
+
 /// How a solid deforms, with the model's parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SolidMaterial {
@@ -405,10 +417,17 @@ pub struct Granular {
     pub friction_angle: f32,
     /// Dilatancy angle psi, degrees.
     pub dilatancy_angle: f32,
+    /// The stress path the cone is fitted on.
+    pub yield_cone: YieldCone,
     /// Cohesion c (dry), Pa.
     pub cohesion: f32,
-    /// Walls are frictionless (free slip) for this solid; else no slip.
-    pub wall_slip: bool,
+    /// The largest added cohesion of partly filled pores, Pa (0: none).
+    pub wet_cohesion: f32,
+    /// van Genuchten's n of the wet cohesion law (> 2).
+    pub suction_n: f32,
+    /// Per axis x, y, z: the walls facing it are frictionless (free slip)
+    /// for this solid; else no slip.
+    pub wall_slip: [bool; 3],
 }
 
 /// `[solid.porous]`: a porous solid (P §4, PHYSICS.md §4.2, §7).

@@ -12,7 +12,7 @@
 use super::errors::{check_numbers, line_column, Doc, KeyPath, Schema};
 use super::file::{
     BoxFile, CylinderFile, FluidFile, MeshFile, PhaseFile, PorousFile, SceneFile, ShapeFile, ShapeKeys, SolidFile,
-    SphereFile, WallFile,
+    SphereFile, WallFile, WallSlipFile,
 };
 use super::mesh::{MeshSource, TriMesh};
 use super::{
@@ -346,6 +346,9 @@ impl Cx<'_> {
             ("dilatancy_angle", s.dilatancy_angle.is_some()),
             ("cohesion", s.cohesion.is_some()),
             ("wall_slip", s.wall_slip.is_some()),
+            ("yield_cone", s.yield_cone.is_some()),
+            ("wet_cohesion", s.wet_cohesion.is_some()),
+            ("suction_n", s.suction_n.is_some()),
         ];
         if s.model == SolidModelChoice::Elastic {
             if let Some((key, _)) = keys.iter().find(|(_, given)| *given) {
@@ -359,8 +362,11 @@ impl Cx<'_> {
         let g = Granular {
             friction_angle: s.friction_angle.unwrap_or(30.0),
             dilatancy_angle: s.dilatancy_angle.unwrap_or(0.0),
+            yield_cone: s.yield_cone.unwrap_or_default(),
             cohesion: s.cohesion.unwrap_or(0.0),
-            wall_slip: s.wall_slip.unwrap_or(false),
+            wet_cohesion: s.wet_cohesion.unwrap_or(0.0),
+            suction_n: s.suction_n.unwrap_or(4.0),
+            wall_slip: self.wall_slip(path, s.wall_slip.as_ref())?,
         };
         if !(g.friction_angle > 0.0 && g.friction_angle < 90.0) {
             let key = path.key("friction_angle");
@@ -379,7 +385,48 @@ impl Cx<'_> {
         if g.cohesion.is_nan() || g.cohesion < 0.0 {
             return Err(self.err(&path.key("cohesion"), format!("expected cohesion >= 0 Pa, found {}", g.cohesion)));
         }
+        if g.wet_cohesion.is_nan() || g.wet_cohesion < 0.0 {
+            let key = path.key("wet_cohesion");
+            return Err(self.err(&key, format!("expected wet_cohesion >= 0 Pa, found {}", g.wet_cohesion)));
+        }
+        if s.wet_cohesion.is_some() && s.porous.is_none() {
+            return Err(self.err(
+                &path.key("wet_cohesion"),
+                "a wet cohesion follows the saturation of the pores: this solid needs a [solid.porous] table",
+            ));
+        }
+        if !(g.suction_n > 2.0 && g.suction_n.is_finite()) {
+            let key = path.key("suction_n");
+            return Err(self.err(
+                &key,
+                format!(
+                    "expected suction_n > 2 (at n <= 2 the wet cohesion does not vanish when dry), found {}",
+                    g.suction_n
+                ),
+            ));
+        }
         Ok(SolidMaterial::Granular(g))
+    }
+
+    /// `wall_slip` of the `[[solid]]` at `path`: per axis x, y, z.
+    fn wall_slip(&self, path: &KeyPath, w: Option<&WallSlipFile>) -> Result<[bool; 3], SceneError> {
+        match w {
+            None => Ok([false; 3]),
+            Some(WallSlipFile::All(b)) => Ok([*b; 3]),
+            Some(WallSlipFile::Axes(axes)) => {
+                let mut out = [false; 3];
+                for a in axes {
+                    let Some(k) = ["x", "y", "z"].iter().position(|n| n == a) else {
+                        return Err(self.err(
+                            &path.key("wall_slip"),
+                            format!("expected true, false or a list of axes \"x\", \"y\", \"z\", found axis {a:?}"),
+                        ));
+                    };
+                    out[k] = true;
+                }
+                Ok(out)
+            }
+        }
     }
 
     /// `[solid.porous]` at `path`.
