@@ -459,8 +459,9 @@ fn bench(a: &Args) {
     println!("phases               {}", phases);
     if !sim.solids.is_empty() {
         println!(
-            "solid particles      {} (elastic, Peer 2018); mean CG iterations {:.1}, elasticity {:.1} ns per solid particle-step",
+            "solid particles      {} (model {}); mean CG iterations {:.1}, elasticity {:.1} ns per solid particle-step",
             sim.solids.len(),
+            sim.solid_model.name(),
             cg_iters as f64 / m,
             pass_ms[PASSES.iter().position(|q| *q == "elasticity").unwrap_or(0)] / m * 1e6 / sim.solids.len() as f64
         );

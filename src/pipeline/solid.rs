@@ -77,6 +77,12 @@ pub trait SolidModel: Send + Sync {
     /// pressure solve's diagonals.
     fn mobility(&self, solids: &SolidStore, out: &mut [f32]);
 
+    /// After the step's velocities are set ([`finish`]): a model whose
+    /// walls are not in the pressure solve keeps its particles out of them
+    /// (the granular walls, `granular::Granular::wall_contact`). Nothing
+    /// by default.
+    fn wall_contact(&self, _solids: &mut SolidStore, _near: &Current) {}
+
     /// Bytes held.
     fn bytes(&self) -> usize;
 }

@@ -223,6 +223,15 @@ fn step_passes(
     let [apx, apy, apz] = solved.ap;
     if !solids.is_empty() {
         solid::finish(solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm, dt, tm);
+        let [sx, sy, sz] = &w.solid_sorted;
+        let near = solid::Current {
+            ss: &w.ss,
+            sb: &w.sb,
+            perm: &w.solid_perm,
+            x: [sx, sy, sz],
+            walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
+        };
+        tm.time(pass::ELASTICITY, || model.wall_contact(solids, &near));
     }
     // Alg. 3: a^cap and a^pore (P-Eqs. 10, 14), added to a^p.
     if let Some(t) = &terms {
