@@ -819,12 +819,21 @@ fn granular_keys_are_checked() {
     assert_rejected(&g("wall_slip = 1"), "solid[0].wall_slip", "");
     assert_rejected(&g("yield_cone = \"cone\""), "solid[0].yield_cone", "");
     // The wet cohesion law needs pores, a cohesion >= 0 and n > 2.
-    assert_rejected(&g("wet_cohesion = 500.0"), "solid[0].wet_cohesion", "needs a [solid.porous] table");
+    assert_rejected(
+        &g("wet_cohesion = 500.0"),
+        "solid[0].wet_cohesion",
+        "needs a [solid.porous] table or a fixed saturation",
+    );
     let wet =
         |k: &str| porous_edited("body = \"sponge\"\n", &format!("body = \"sponge\"\nmodel = \"granular\"\n{k}\n"));
     assert!(parse(&wet("wet_cohesion = 500.0\nsuction_n = 3.0")).is_ok());
     assert_rejected(&wet("wet_cohesion = -5.0"), "solid[0].wet_cohesion", ">= 0, found -5");
     assert_rejected(&wet("suction_n = 2.0"), "solid[0].suction_n", "> 2");
+    // Or a saturation held fixed, 0 to 1, and only without pores.
+    assert!(parse(&g("wet_cohesion = 500.0\nsaturation = 0.7")).is_ok());
+    assert_rejected(&g("saturation = 1.5"), "solid[0].saturation", "in [0, 1], found 1.5");
+    assert_rejected(&wet("saturation = 0.5"), "solid[0].saturation", "without [solid.porous]");
+    assert_rejected(&granular_edited("saturation = 0.5"), "solid[0].saturation", "model is \"elastic\"");
     assert_rejected(&granular_edited("suction_n = 4.0"), "solid[0].suction_n", "model is \"elastic\"");
     assert_rejected(&granular_edited("yield_cone = \"plane_strain\""), "solid[0].yield_cone", "model is \"elastic\"");
     // A body is elastic or granular throughout.

@@ -36,6 +36,8 @@ pub struct Granular {
     sound_speed: Vec<f32>,
     /// Porosity e of each material (0 if not porous).
     porosity: Vec<f32>,
+    /// The saturation a material holds fixed (scene key `saturation`).
+    fixed_saturation: Vec<Option<f32>>,
     /// Particle spacing h, m.
     h: f32,
     // Sorted scratch, kept for its capacity.
@@ -61,6 +63,7 @@ impl Granular {
         let mut materials = Vec::new();
         let mut sound_speed = Vec::new();
         let mut porosity = Vec::new();
+        let mut fixed_saturation = Vec::new();
         let mut of_entry = vec![NOT_GRANULAR; scene.solids.len()];
         for (e, s) in scene.solids.iter().enumerate() {
             if let SolidMaterial::Granular(g) = s.model {
@@ -84,6 +87,7 @@ impl Granular {
                     suction_n: g.suction_n,
                 });
                 porosity.push(s.porous.as_ref().map_or(0.0, |p| p.porosity));
+                fixed_saturation.push(g.saturation);
                 sound_speed.push(((bulk + 4.0 * s.shear_modulus / 3.0) / s.density).sqrt());
             }
         }
@@ -96,6 +100,7 @@ impl Granular {
             materials,
             sound_speed,
             porosity,
+            fixed_saturation,
             h,
             s_material: Vec::new(),
             s_body: Vec::new(),
@@ -153,8 +158,11 @@ impl Granular {
         }
         self.s_saturation.clear();
         self.s_saturation.extend(perm.iter().map(|&i| {
-            let i = i as usize;
-            match self.porosity.get(self.material[i] as usize) {
+            let (i, m) = (i as usize, self.material[i as usize] as usize);
+            if let Some(&Some(fixed)) = self.fixed_saturation.get(m) {
+                return fixed;
+            }
+            match self.porosity.get(m) {
                 Some(&e) if e > 0.0 => (s.saturation[i] / e).clamp(0.0, 1.0),
                 _ => 0.0,
             }
@@ -254,6 +262,7 @@ impl Granular {
             + self.s_pore.capacity()
             + self.s_saturation.capacity()
             + self.porosity.capacity()
+            + 2 * self.fixed_saturation.capacity()
             + self.s_fixed.capacity()
             + self.s_plastic.capacity())
             + 36 * self.s_sigma.capacity()

@@ -339,7 +339,7 @@ pub(super) struct SolidFile {
     /// The wet cohesion in Pa (granular only)
     ///
     /// The largest cohesion that partly filled pores add; needs
-    /// `[solid.porous]`. The cohesion is `cohesion + wet_cohesion
+    /// `[solid.porous]` or a fixed `saturation`. The cohesion is `cohesion + wet_cohesion
     /// g(S) / g_max` at saturation S = sum_k phi_sk / porosity, g the
     /// suction stress of Lu & Likos (2006): 0 when dry and when saturated,
     /// largest in between (kernels/src/granular.rs); default 0.
@@ -352,6 +352,14 @@ pub(super) struct SolidFile {
     /// cohesion at S = 0.74).
     #[schemars(extend("exclusiveMinimum" = 2))]
     pub suction_n: Option<f32>,
+    /// A moisture held fixed, the saturation S of the pores (granular only)
+    ///
+    /// For damp sand without `[solid.porous]`: S sets the wet cohesion
+    /// (`wet_cohesion`) as the absorbed water would, but nothing flows and
+    /// there is no pore pressure. 0 to 1; with `[solid.porous]` S comes
+    /// from the absorbed phases instead (an error here).
+    #[schemars(range(min = 0, max = 1))]
+    pub saturation: Option<f32>,
     /// Which walls are frictionless for this solid (granular only)
     ///
     /// false (default): the walls hold the grains without slip, so their

@@ -425,6 +425,8 @@ pub struct Granular {
     pub wet_cohesion: f32,
     /// van Genuchten's n of the wet cohesion law (> 2).
     pub suction_n: f32,
+    /// A saturation held fixed (no `[solid.porous]`), or `None`.
+    pub saturation: Option<f32>,
     /// Per axis x, y, z: the walls facing it are frictionless (free slip)
     /// for this solid; else no slip.
     pub wall_slip: [bool; 3],

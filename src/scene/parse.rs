@@ -349,6 +349,7 @@ impl Cx<'_> {
             ("yield_cone", s.yield_cone.is_some()),
             ("wet_cohesion", s.wet_cohesion.is_some()),
             ("suction_n", s.suction_n.is_some()),
+            ("saturation", s.saturation.is_some()),
         ];
         if s.model == SolidModelChoice::Elastic {
             if let Some((key, _)) = keys.iter().find(|(_, given)| *given) {
@@ -366,6 +367,7 @@ impl Cx<'_> {
             cohesion: s.cohesion.unwrap_or(0.0),
             wet_cohesion: s.wet_cohesion.unwrap_or(0.0),
             suction_n: s.suction_n.unwrap_or(4.0),
+            saturation: s.saturation,
             wall_slip: self.wall_slip(path, s.wall_slip.as_ref())?,
         };
         if !(g.friction_angle > 0.0 && g.friction_angle < 90.0) {
@@ -389,10 +391,22 @@ impl Cx<'_> {
             let key = path.key("wet_cohesion");
             return Err(self.err(&key, format!("expected wet_cohesion >= 0 Pa, found {}", g.wet_cohesion)));
         }
-        if s.wet_cohesion.is_some() && s.porous.is_none() {
+        if let Some(sat) = g.saturation {
+            let key = path.key("saturation");
+            if !(0.0..=1.0).contains(&sat) {
+                return Err(self.err(&key, format!("expected 0 <= saturation <= 1, found {sat}")));
+            }
+            if s.porous.is_some() {
+                return Err(self.err(
+                    &key,
+                    "a porous solid's saturation comes from the water it absorbs: give saturation only without [solid.porous]",
+                ));
+            }
+        }
+        if s.wet_cohesion.is_some() && s.porous.is_none() && g.saturation.is_none() {
             return Err(self.err(
                 &path.key("wet_cohesion"),
-                "a wet cohesion follows the saturation of the pores: this solid needs a [solid.porous] table",
+                "a wet cohesion follows the saturation of the pores: this solid needs a [solid.porous] table or a fixed saturation",
             ));
         }
         if !(g.suction_n > 2.0 && g.suction_n.is_finite()) {
