@@ -89,8 +89,10 @@ impl Simulation {
         for i in 0..ns {
             let body = self.scene.solids.get(s.body[i] as usize);
             let e = body.and_then(|b| b.porous.as_ref()).map_or(1.0, |p| p.porosity);
-            let t = (s.saturation[i] / e).clamp(0.0, 1.0);
-            let (dry, wet) = if body.is_some_and(|b| matches!(b.model, SolidMaterial::Granular(_))) {
+            let mut t = (s.saturation[i] / e).clamp(0.0, 1.0);
+            let (dry, wet) = if let Some(SolidMaterial::Granular(g)) = body.map(|b| b.model) {
+                // Damp sand with its moisture held fixed shows it.
+                t = g.saturation.unwrap_or(t);
                 (SAND_DRY_COLOR, SAND_WET_COLOR)
             } else {
                 (SOLID_COLOR, WET_COLOR)
