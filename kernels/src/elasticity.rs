@@ -16,7 +16,7 @@
 //! threads. Scalar code: solids are few next to fluid particles, and a 3x3
 //! matrix per particle does not fit the SIMD pair layout of the fluid.
 
-use crate::blocks::{nblocks, sum_f64, BLOCK};
+use crate::blocks::{max_f32, nblocks, sum_f64, BLOCK};
 use crate::kernel::Kernel;
 use glam::{Mat3, Quat, Vec3};
 use rayon::prelude::*;
@@ -362,6 +362,16 @@ pub struct CgStats {
 /// on entry (their residual and search direction are 0). `v` is the warm
 /// start on entry and the solution on exit. Stops at |r| <= tol |rhs| or
 /// after `max_iterations`.
+///
+/// The system is solved scaled by a power of two, [`rhs_scale`], that
+/// brings the largest component of the free particles' `rhs` into [1, 2):
+/// in f32 the products of p.Ap lie near |rhs|^2 m, which for the tiny
+/// forces of a nearly dry body's first wet step (|F| = 1.6e-18 N on a
+/// 0.5 g particle, issue 34) are below f32's smallest normal number
+/// (1.2e-38): the subnormals lost the conjugacy at the second iteration
+/// and CG diverged to infinity. Scaling by 2^k is exact in floating point,
+/// so for every rhs that does not underflow or overflow the iterates are
+/// bit for bit those of the unscaled solve.
 pub fn conjugate_gradients(
     sys: &System,
     rhs: &[Vec3],
@@ -379,7 +389,8 @@ pub fn conjugate_gradients(
     let fixed = sys.fixed;
     let CgBuffers { r, p, ap, t, parts } = buf;
     let dot = |parts: &mut [f64], a: &[Vec3], b: &[Vec3]| sum_f64(n, parts, |i| f64::from(a[i].dot(b[i])));
-    let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from(rhs[i].length_squared()) });
+    let scale = rhs_scale(rhs, fixed);
+    let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * rhs[i]).length_squared()) });
     if b2 == 0.0 {
         // Nothing drives the free particles: the solution is 0 for them
         // (the pressure solve asks this of bodies no fluid touches).
@@ -390,9 +401,10 @@ pub fn conjugate_gradients(
         });
         return CgStats { iterations: 0, residual: 0.0 };
     }
+    v.par_iter_mut().for_each(|v| *v *= scale);
     sys.apply(v, t, ap);
     r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
-        *r = if fixed[i] != 0 { Vec3::ZERO } else { rhs[i] - ap[i] };
+        *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * rhs[i] - ap[i] };
         *p = *r;
     });
     let mut rr = dot(parts, r, r);
@@ -420,8 +432,24 @@ pub fn conjugate_gradients(
         rr = rr_new;
         it += 1;
     }
+    let unscale = 1.0 / scale;
+    v.par_iter_mut().for_each(|v| *v *= unscale);
     let residual = if b2 > 0.0 { (rr / b2).sqrt() as f32 } else { 0.0 };
     CgStats { iterations: it, residual }
+}
+
+/// 2^-k with 2^k <= max |rhs_i| (components, free particles) < 2^(k+1),
+/// k within f32's normal exponents (1 for a zero or non-finite rhs): the
+/// exact scale under which [`conjugate_gradients`] works.
+pub fn rhs_scale(rhs: &[Vec3], fixed: &[u32]) -> f32 {
+    let m = max_f32(rhs.len(), |i| if fixed[i] != 0 { 0.0 } else { rhs[i].abs().max_element() });
+    if m == 0.0 || !m.is_finite() {
+        return 1.0;
+    }
+    // The exponent of m (subnormals count as 2^-126), kept where 2^-k is a
+    // normal number both ways.
+    let k = ((m.to_bits() >> 23) as i32 - 127).clamp(-126, 126);
+    f32::from_bits(((127 - k) as u32) << 23)
 }
 
 #[cfg(test)]
@@ -460,6 +488,58 @@ mod tests {
                 c += outer(rest.dx0[p], rest.correction[i] * rest.w[p]);
             }
             assert!(c.abs_diff_eq(Mat3::IDENTITY, 1e-4), "particle {i}: {c:?}");
+        }
+    }
+
+    /// The response of a body at rest (the issue-34 ball: d = 1 cm, 500
+    /// kg/m^3, mu 5e4 Pa, lambda 2e4 Pa, dt 2 ms) to a force on three of
+    /// its particles, `f` N each way, solved from rest to 1e-4.
+    fn response_to(f: f32) -> (Vec<Vec3>, CgStats) {
+        let d = 0.01;
+        let x0 = block([6, 6, 6], d);
+        let n = x0.len();
+        let mass = vec![500.0 * d * d * d; n];
+        let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
+        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
+        deform(&rest, &x0, &mut rot, &mut def);
+        let lame = vec![Lame { mu: 5e4, lambda: 2e4 }; n];
+        let fixed = vec![0; n];
+        let sys = System { rest: &rest, def: &def, lame: &lame, mass: &mass, fixed: &fixed, dt: 0.002 };
+        let mut rhs = vec![Vec3::ZERO; n];
+        for (k, i) in [5usize, 100, 211].into_iter().enumerate() {
+            rhs[i] = f * Vec3::new(1.0 + k as f32, -2.0, 0.5 * k as f32);
+        }
+        let mut a = vec![Vec3::ZERO; n];
+        let stats = conjugate_gradients(&sys, &rhs, &mut a, 1e-4, 2000, &mut CgBuffers::default());
+        (a, stats)
+    }
+
+    /// Issue 34: forces of 1e-18 N (a ball's first wet step) drove the f32
+    /// products of p.Ap below the smallest normal number and CG diverged
+    /// to infinity (rr 5e-35 -> 6e33 in 320 iterations). Reference: the
+    /// system is linear, so the response to s F is s times the response to
+    /// F; exactly so, bit for bit, for s a power of two (the scaled solve).
+    #[test]
+    fn response_to_a_tiny_force_is_the_scaled_response() {
+        let (big, sb) = response_to(1e-2);
+        assert!(sb.residual <= 1e-4, "{sb:?}");
+        let vmax = big.iter().map(|v| v.length()).fold(0.0, f32::max);
+        assert!(vmax > 0.0);
+        // 2^-60 1e-2 N = 8.7e-21 N: every iterate exactly scaled.
+        let s = 2.0f32.powi(-60);
+        let (tiny, st) = response_to(1e-2 * s);
+        assert_eq!(st, sb);
+        for (a, b) in tiny.iter().zip(&big) {
+            assert_eq!(*a, *b * s);
+        }
+        // 1.6e-18 N, not a power of two apart: the same answer to the CG
+        // tolerance (1e-4 of the residual; 1e-3 of the largest response).
+        let s = 1.6e-16f32;
+        let (tiny, st) = response_to(1e-2 * s);
+        assert!(st.residual <= 1e-4, "{st:?}");
+        for (i, (a, b)) in tiny.iter().zip(&big).enumerate() {
+            let e = (*a / s - *b).length() / vmax;
+            assert!(e < 1e-3, "particle {i}: {a:?} / {s} vs {b:?} ({e:.2e})");
         }
     }
 }
