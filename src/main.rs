@@ -10,6 +10,7 @@ use porosph::io::read_stats;
 use porosph::pipeline::Simulation;
 use porosph::plot::{self, PlotOptions};
 use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
+use porosph::run::output::{self, Claim};
 use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use porosph_kernels::kernel::KernelShape;
@@ -52,6 +53,12 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Write into a --out that holds an earlier porosph run: first remove
+    /// its frames, frame series index, checkpoints, rendered pictures,
+    /// stats.csv, plots.png and scene.toml. Never removes anything else: a
+    /// directory that holds other files is refused.
+    #[arg(long)]
+    overwrite: bool,
     /// Where the offloadable passes run: `cpu` (every pass on the CPU,
     /// bitwise deterministic) or `gpu` (through wgpu/Vulkan; the passes of
     /// --gpu-passes on the GPU, the rest on the CPU).
@@ -284,8 +291,19 @@ fn execute(sim: &mut Simulation, opts: &RunOptions) -> Result<(), String> {
     }
 }
 
+/// Takes the output directory as `claim` allows: removes an earlier run's
+/// files (`--overwrite`) and says what went.
+fn take_output(claim: Claim) -> Result<(), String> {
+    if let Claim::Replace(s) = claim {
+        s.remove().map_err(|e| format!("--overwrite: {e}"))?;
+        eprintln!("porosph: --overwrite: removed the earlier run in {}: {}", s.dir.display(), s.describe());
+    }
+    Ok(())
+}
+
 fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), String> {
     a.check()?;
+    let claim = output::claim(&out, a.overwrite).map_err(|e| e.to_string())?;
     let scene = load_scene(scene.as_deref())?;
     a.pool()?.install(|| {
         let origin = scene.origin.clone();
@@ -312,6 +330,7 @@ fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), St
             resume: None,
             inject_nan_at_step: a.inject_nan_at_step,
         };
+        take_output(claim)?;
         execute(&mut sim, &opts)
     })
 }
@@ -331,6 +350,14 @@ fn run_dir_of(checkpoint: &Path) -> PathBuf {
     dir
 }
 
+/// Whether `a` and `b` are the same existing directory.
+fn same_dir(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
 fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(), String> {
     a.check()?;
     let ckpt = read_checkpoint(&path).map_err(|e| e.to_string())?;
@@ -342,7 +369,23 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
         ));
     }
     let r = ckpt.run.clone();
-    let out = out.unwrap_or_else(|| run_dir_of(&path));
+    // The checkpoint's own run directory is continued; any other --out is
+    // a new directory for this run, as for `porosph run`.
+    let own = run_dir_of(&path);
+    let out = out.unwrap_or_else(|| own.clone());
+    let claim = if same_dir(&out, &own) {
+        if a.overwrite {
+            return Err(format!(
+                "--overwrite: {} is the run this checkpoint belongs to, and resume continues it \
+                 (stats.csv and the frames after the checkpoint are replaced); leave out --overwrite, \
+                 or give another --out",
+                out.display()
+            ));
+        }
+        Claim::Fresh
+    } else {
+        output::claim(&out, a.overwrite).map_err(|e| e.to_string())?
+    };
     let (time, step) = (ckpt.state.time, ckpt.state.step);
     // Where to stop: as asked, else where the saved run was going to stop.
     let (until, steps) = match (a.until, a.steps, r.stop_time, r.stop_step) {
@@ -372,6 +415,7 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
     a.pool()?.install(|| {
         let mut sim = Simulation::from_saved_state(ckpt.state).map_err(|e| format!("{}: {e}", path.display()))?;
         a.attach_backend(&mut sim)?;
+        take_output(claim)?;
         if !a.quiet {
             eprintln!(
                 "porosph: resuming {} at step {step} (t = {time} s): {} fluid + {} wall particles, \

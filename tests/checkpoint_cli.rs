@@ -124,10 +124,17 @@ fn unwritable_checkpoint_directory_fails_before_running() {
     let out = dir.path("run");
     fs::create_dir_all(&out).expect("mkdir");
     fs::write(out.join("checkpoints"), b"").expect("a file in the way");
-    let r = porosph(&["run", s(&scene), "--out", s(&out), "--steps", "3", "--checkpoint-every", "1steps", "--quiet"]);
-    let err = text(&r.stderr);
-    assert!(!r.status.success());
-    assert!(err.contains("checkpoints: cannot create directory"), "{err}");
+    // A file where porosph makes a folder: not porosph's, so even
+    // --overwrite leaves it and the run is refused before it starts.
+    for extra in [&[][..], &["--overwrite"][..]] {
+        let mut args = vec!["run", s(&scene), "--out", s(&out), "--steps", "3", "--checkpoint-every", "1steps"];
+        args.extend(extra);
+        let r = porosph(&args);
+        let err = text(&r.stderr);
+        assert!(!r.status.success());
+        assert!(err.contains("holds checkpoints, which porosph did not write"), "{err}");
+        assert!(!out.join("stats.csv").exists(), "the run started");
+    }
 }
 
 #[test]

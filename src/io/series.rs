@@ -79,9 +79,21 @@ impl SeriesWriter {
         self.write()
     }
 
+    /// Keeps only the entries whose names pass `keep` and rewrites the
+    /// index if any went; returns how many went.
+    pub fn retain(&mut self, mut keep: impl FnMut(&str) -> bool) -> Result<usize, IoError> {
+        let before = self.entries.len();
+        self.entries.retain(|(name, _)| keep(name));
+        let gone = before - self.entries.len();
+        if gone > 0 {
+            self.write()?;
+        }
+        Ok(gone)
+    }
+
     /// Writes the whole index to a temporary file next to it, syncs, and
     /// renames it over the index.
-    fn write(&self) -> Result<(), IoError> {
+    pub fn write(&self) -> Result<(), IoError> {
         let text = render_series(&self.entries);
         super::atomic::write_bytes(&self.path, text.as_bytes())
     }

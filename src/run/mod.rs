@@ -1,10 +1,13 @@
 //! A run: steps the simulation to its end, writes frames and checkpoints on
 //! schedule and a stats row per step, and shows progress. A run that
 //! resumes from a checkpoint goes on where the saved run stood: the same
-//! frame numbers and schedule, appending to the same `stats.csv`.
+//! frame numbers and schedule, appending to the same `stats.csv`; frames
+//! the run had written after the checkpoint (before a crash) are removed,
+//! so the frame series lists exactly the resumed run's frames.
 
 mod checkpoints;
 mod frame;
+pub mod output;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
 pub use frame::{kind, INNER_SHADE};
@@ -169,6 +172,35 @@ fn create_dir(p: &Path) -> Result<(), IoError> {
     std::fs::create_dir_all(p).map_err(|e| IoError::new(p, format!("cannot create directory: {e}")))
 }
 
+/// The number `n` of a frame file `frame_<n>.vtkhdf`.
+fn frame_number(name: &str) -> Option<u64> {
+    let digits = name.strip_prefix("frame_")?.strip_suffix(".vtkhdf")?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
+/// For a run that resumes with `frames` frames written: removes the frame
+/// files numbered `frames` and on (written after the checkpoint, by the run
+/// before it stopped) and their series entries. Returns how many files went.
+fn remove_later_frames(dir: &Path, series: &mut SeriesWriter, frames: u64) -> Result<usize, IoError> {
+    series.retain(|name| frame_number(name).is_none_or(|n| n < frames))?;
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return Ok(0);
+    };
+    let mut removed = 0;
+    for e in rd.flatten() {
+        let name = e.file_name();
+        if name.to_str().and_then(frame_number).is_some_and(|n| n >= frames) {
+            let p = e.path();
+            std::fs::remove_file(&p).map_err(|err| IoError::new(&p, format!("cannot remove: {err}")))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Runs `sim` as `opts` says.
 pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunError> {
     let frames_dir = opts.out.join("frames");
@@ -184,12 +216,20 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             0u64,
             0.0f64,
         ),
-        Some(c) => (
-            StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases), sim.step)?,
-            SeriesWriter::open_existing(&series_path)?,
-            c.frames,
-            c.next_frame,
-        ),
+        Some(c) => {
+            let stats = StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases), sim.step)?;
+            let mut series = SeriesWriter::open_existing(&series_path)?;
+            let later = remove_later_frames(&frames_dir, &mut series, c.frames)?;
+            if later > 0 && !opts.quiet {
+                eprintln!(
+                    "porosph: removed {later} frame{} (frame {} on) that the run had written \
+                     after this checkpoint",
+                    if later == 1 { "" } else { "s" },
+                    c.frames
+                );
+            }
+            (stats, series, c.frames, c.next_frame)
+        }
     };
     let first_frame = frames;
     let mut checkpoints = Checkpoints::new(&opts.out.join("checkpoints"), opts.checkpoint_every, opts.keep)?;
