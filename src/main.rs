@@ -11,7 +11,7 @@ use porosph::pipeline::Simulation;
 use porosph::plot::{self, PlotOptions};
 use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
 use porosph::run::output::{self, Claim};
-use porosph::run::{run, CheckpointEvery, Continuation, RunOptions, DEFAULT_KEEP};
+use porosph::run::{interrupt, run, CheckpointEvery, Continuation, RunError, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
 use porosph_kernels::kernel::KernelShape;
 use std::path::{Path, PathBuf};
@@ -272,8 +272,11 @@ impl RunArgs {
     }
 }
 
-/// Runs `sim` and reports how it went.
+/// Runs `sim` and reports how it went. SIGINT and SIGTERM stop the run
+/// after the current step with a checkpoint, the command that resumes it,
+/// and exit status 130 or 143 (a second signal exits at once).
 fn execute(sim: &mut Simulation, opts: &RunOptions) -> Result<(), String> {
+    interrupt::install()?;
     match run(sim, opts) {
         Ok(s) => {
             if !opts.quiet {
@@ -286,6 +289,21 @@ fn execute(sim: &mut Simulation, opts: &RunOptions) -> Result<(), String> {
                 );
             }
             Ok(())
+        }
+        Err(RunError::Interrupted { signal, step, time, checkpoint }) => {
+            let how = interrupt::name(signal);
+            match checkpoint {
+                Ok(c) => eprintln!(
+                    "porosph: stopped by {how} after step {step} (t = {time} s); checkpoint written, \
+                     frames and stats.csv are complete. To continue:\n  porosph resume {}",
+                    output::shell_quote(&c)
+                ),
+                Err(e) => {
+                    eprintln!("porosph: error: stopped by {how} after step {step}: cannot write a checkpoint: {e}")
+                }
+            }
+            // Every writer of the run is closed (flushed) by now.
+            std::process::exit(128 + signal);
         }
         Err(e) => Err(e.to_string()),
     }

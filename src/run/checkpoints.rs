@@ -68,6 +68,8 @@ pub struct Checkpoints {
     keep: usize,
     /// The newest checkpoint known to be complete.
     last_good: Option<PathBuf>,
+    /// The newest checkpoint this run wrote.
+    written: Option<PathBuf>,
 }
 
 /// Tolerance on simulated time when deciding whether a checkpoint is due, s.
@@ -79,7 +81,7 @@ impl Checkpoints {
     /// reported before the run starts). Removes temporary files left by a
     /// run that was killed while writing.
     pub fn new(dir: &Path, every: Option<CheckpointEvery>, keep: usize) -> Result<Self, IoError> {
-        let mut c = Self { dir: dir.to_path_buf(), every, keep: keep.max(1), last_good: None };
+        let mut c = Self { dir: dir.to_path_buf(), every, keep: keep.max(1), last_good: None, written: None };
         if every.is_some() {
             fs::create_dir_all(dir).map_err(|e| IoError::new(dir, format!("cannot create directory: {e}")))?;
         }
@@ -126,6 +128,7 @@ impl Checkpoints {
         let path = self.path(sim.step);
         write_checkpoint(&path, sim, run, None)?;
         self.last_good = Some(path.clone());
+        self.written = Some(path.clone());
         let older: Vec<(u64, String)> = self.regular().into_iter().filter(|&(s, _)| s < sim.step).collect();
         let excess = (older.len() + 1).saturating_sub(self.keep);
         for (_, name) in older.iter().take(excess) {
@@ -134,6 +137,18 @@ impl Checkpoints {
             let _ = fs::remove_file(self.dir.join(name));
         }
         Ok(path)
+    }
+
+    /// The checkpoint of the current step, whatever the schedule (a run
+    /// that is interrupted): the one just written on schedule, or a new
+    /// one (creating the directory, rotating as [`Checkpoints::write`]).
+    pub fn write_now(&mut self, sim: &Simulation, run: &RunInfo) -> Result<PathBuf, IoError> {
+        let path = self.path(sim.step);
+        if self.written.as_deref() == Some(path.as_path()) {
+            return Ok(path);
+        }
+        fs::create_dir_all(&self.dir).map_err(|e| IoError::new(&self.dir, format!("cannot create directory: {e}")))?;
+        self.write(sim, run)
     }
 
     /// Writes the diagnostic checkpoint of a failed step,
@@ -173,7 +188,7 @@ impl Checkpoints {
 
 /// The newest regular checkpoint (`ckpt_<step>.h5`) in `dir`, if any.
 pub fn newest_checkpoint(dir: &Path) -> Option<PathBuf> {
-    let c = Checkpoints { dir: dir.to_path_buf(), every: None, keep: 1, last_good: None };
+    let c = Checkpoints { dir: dir.to_path_buf(), every: None, keep: 1, last_good: None, written: None };
     c.regular().last().map(|(_, name)| dir.join(name))
 }
 

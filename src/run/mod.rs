@@ -7,6 +7,7 @@
 
 mod checkpoints;
 mod frame;
+pub mod interrupt;
 pub mod output;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
@@ -101,6 +102,14 @@ pub enum RunError {
         error: IoError,
         last_good: Option<PathBuf>,
     },
+    /// SIGINT or SIGTERM ([`interrupt`]): the run stopped after step
+    /// `step` and wrote `checkpoint` (or says why it could not).
+    Interrupted {
+        signal: i32,
+        step: u64,
+        time: f64,
+        checkpoint: Result<PathBuf, IoError>,
+    },
 }
 
 impl fmt::Display for RunError {
@@ -121,6 +130,13 @@ impl fmt::Display for RunError {
                         write!(f, "nothing already written was lost, the newest complete checkpoint is {}", p.display())
                     }
                     None => write!(f, "no earlier checkpoint of this run exists"),
+                }
+            }
+            RunError::Interrupted { signal, step, time, checkpoint } => {
+                write!(f, "interrupted by {} after step {step} (t = {time} s); ", interrupt::name(*signal))?;
+                match checkpoint {
+                    Ok(p) => write!(f, "checkpoint: {}", p.display()),
+                    Err(e) => write!(f, "could not write a checkpoint: {e}"),
                 }
             }
         }
@@ -283,6 +299,14 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         (None, None) => true,
     };
     while !done(sim) {
+        if let Some(signal) = interrupt::requested() {
+            bar.abandon();
+            // The series index is rewritten after every frame; once more,
+            // so that it is there even if this run wrote no frame.
+            series.write()?;
+            let checkpoint = checkpoints.write_now(sim, &run_info(frames, next_frame));
+            return Err(RunError::Interrupted { signal, step: sim.step, time: sim.time, checkpoint });
+        }
         if opts.inject_nan_at_step == Some(sim.step) {
             if let Some(u) = sim.fluid.ux.first_mut() {
                 *u = f32::NAN;
