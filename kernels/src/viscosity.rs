@@ -2,9 +2,9 @@
 //! with the phase pair weights of the mixture, and the prediction
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
-use crate::blocks::BLOCK;
+use crate::blocks::{sum_f64, BLOCK};
 use crate::iisph::Vel;
-use crate::lanes::{gather, load, sum, F, LANES};
+use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists, Points};
 use crate::phases::VelMut;
 use rayon::prelude::*;
@@ -138,4 +138,185 @@ pub fn predict_velocity_mixture(inp: &ViscosityInput, alpha: &[&[f32]], u_star: 
                 oz[q] = u.z[i] + inp.dt * (inp.gravity[2] + a[2]);
             }
         });
+}
+
+/// What the implicit viscosity solve did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ImplicitStats {
+    pub iterations: u32,
+    /// |r| / |r_0| at the end (r_0 the residual of the start u + dt g).
+    pub residual: f32,
+}
+
+/// Per-particle scratch of [`predict_velocity_implicit`], n values each
+/// (from the step's arena).
+pub struct ImplicitScratch<'a> {
+    /// The Jacobi preconditioner D_i (the matrix diagonal).
+    pub diag: &'a mut [f32],
+    /// Residual, preconditioned residual, search direction and A p, each
+    /// three components.
+    pub r: [&'a mut [f32]; 3],
+    pub z: [&'a mut [f32]; 3],
+    pub p: [&'a mut [f32]; 3],
+    pub ap: [&'a mut [f32]; 3],
+    /// Block partial sums, [`crate::blocks::nblocks`]`(n)` values.
+    pub parts: &'a mut [f64],
+}
+
+/// The coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /
+/// (|x_ij|^2 + 0.01 h^2) of P-Eq. 23's Morris form, one per pair (the
+/// padding's are 0), in `coef` (one vector per block of `ff`, kept for its
+/// capacity); they are symmetric, k_ij = k_ji. Writes D_i = rho_i +
+/// dt h^3 sum_j k_ij.
+fn implicit_coefficients<W: PairWeight>(inp: &ViscosityInput, wt: &W, coef: &mut [Vec<f32>], diag: &mut [f32]) {
+    let eps = 0.01 * inp.h * inp.h;
+    let x = inp.x;
+    let scale = inp.dt * inp.h * inp.h * inp.h;
+    coef.par_iter_mut().zip(diag.par_chunks_mut(BLOCK)).zip(inp.ff.used().par_iter()).enumerate().for_each(
+        |(b, ((c, dg), blk))| {
+            c.clear();
+            c.resize(blk.len(), 0.0);
+            for (q, dg) in dg.iter_mut().enumerate() {
+                let i = b * BLOCK + q;
+                let (xi, yi, zi) = (F::splat(x.x[i]), F::splat(x.y[i]), F::splat(x.z[i]));
+                let mui = F::splat(inp.mu[i]);
+                let r = blk.range(q);
+                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+                let mut total = F::ZERO;
+                let mut k = r.start;
+                while k < r.end {
+                    let dx = xi - gather(x.x, j, k);
+                    let dy = yi - gather(x.y, j, k);
+                    let dz = zi - gather(x.z, j, k);
+                    let r2 = dx * dx + dy * dy + dz * dz;
+                    let xg = -(dx * load(gx, k) + dy * load(gy, k) + dz * load(gz, k));
+                    let kij = wt.apply((mui + gather(inp.mu, j, k)) * xg / (r2 + F::splat(eps)), i, j, k);
+                    store(c, k, kij);
+                    total += kij;
+                    k += LANES;
+                }
+                *dg = inp.rest_density[i] + scale * sum(total);
+            }
+        },
+    );
+}
+
+/// out = A v for the three components: (A v)_i = rho_i v_i +
+/// dt h^3 sum_j k_ij (v_i - v_j).
+fn implicit_apply(inp: &ViscosityInput, coef: &[Vec<f32>], v: [&[f32]; 3], out: &mut [&mut [f32]; 3]) {
+    let scale = inp.dt * inp.h * inp.h * inp.h;
+    let [ox, oy, oz] = out;
+    ox.par_chunks_mut(BLOCK)
+        .zip(oy.par_chunks_mut(BLOCK))
+        .zip(oz.par_chunks_mut(BLOCK))
+        .zip(coef.par_iter().zip(inp.ff.used().par_iter()))
+        .enumerate()
+        .for_each(|(b, (((ox, oy), oz), (c, blk)))| {
+            for q in 0..ox.len() {
+                let i = b * BLOCK + q;
+                let (vxi, vyi, vzi) = (F::splat(v[0][i]), F::splat(v[1][i]), F::splat(v[2][i]));
+                let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
+                let r = blk.range(q);
+                let j = &blk.j[..r.end];
+                let mut k = r.start;
+                while k < r.end {
+                    let kij = load(c, k);
+                    sx += kij * (vxi - gather(v[0], j, k));
+                    sy += kij * (vyi - gather(v[1], j, k));
+                    sz += kij * (vzi - gather(v[2], j, k));
+                    k += LANES;
+                }
+                let rho = inp.rest_density[i];
+                ox[q] = rho * v[0][i] + scale * sum(sx);
+                oy[q] = rho * v[1][i] + scale * sum(sy);
+                oz[q] = rho * v[2][i] + scale * sum(sz);
+            }
+        });
+}
+
+/// P-Eq. 23 implicit (backward Euler): u*_i = u_i + dt (g + a^visc_i(u*)),
+/// i.e. with masses m_i = rho_i h^3, the symmetric positive definite system
+///   rho_i u*_i + dt h^3 sum_j k_ij (u*_i - u*_j) = rho_i (u_i + dt g)
+/// (k_ij of [`implicit_coefficients`], >= 0 and symmetric: the viscous
+/// forces are pairwise equal and opposite, so linear momentum is conserved,
+/// and the step is stable for any dt). Solved for the three components at
+/// once by conjugate gradients with the Jacobi preconditioner, from
+/// u + dt g, until |r| <= `tol` |r_0| or `max_iterations`. `alpha`: the
+/// phase fractions of the pair weights (None: one phase, w_ij = 1). The
+/// explicit form [`predict_velocity`] limits dt to 0.125 h^2 rho / mu; this
+/// one does not (PHYSICS.md §7; Weiler et al. 2018 solve the same
+/// backward-Euler step for a strain-rate form).
+pub fn predict_velocity_implicit(
+    inp: &ViscosityInput,
+    alpha: Option<&[&[f32]]>,
+    coef: &mut Vec<Vec<f32>>,
+    s: ImplicitScratch,
+    tol: f32,
+    max_iterations: u32,
+    u_star: VelMut,
+) -> ImplicitStats {
+    let n = inp.rest_density.len();
+    let nb = inp.ff.used().len();
+    if coef.len() < nb {
+        coef.resize_with(nb, Vec::new);
+    }
+    let coef = &mut coef[..nb];
+    let ImplicitScratch { diag, r, mut z, p, mut ap, parts } = s;
+    match alpha {
+        Some(a) => implicit_coefficients(inp, &PhaseWeights(a), coef, diag),
+        None => implicit_coefficients(inp, &Unweighted, coef, diag),
+    }
+    let x = [u_star.x, u_star.y, u_star.z];
+    let (u, g, dt) = (inp.u, inp.gravity, inp.dt);
+    let start = [u.x, u.y, u.z];
+    for c in 0..3 {
+        x[c].par_iter_mut().zip(start[c].par_iter()).for_each(|(x, u)| *x = u + dt * g[c]);
+    }
+    // r = b - A x with b = rho x: r = rho x - A x.
+    implicit_apply(inp, coef, [&*x[0], &*x[1], &*x[2]], &mut ap);
+    for c in 0..3 {
+        r[c].par_iter_mut().enumerate().for_each(|(i, r)| *r = inp.rest_density[i] * x[c][i] - ap[c][i]);
+    }
+    let dot = |parts: &mut [f64], a: &[&mut [f32]; 3], b: &[&mut [f32]; 3]| {
+        sum_f64(n, parts, |i| (0..3).map(|c| f64::from(a[c][i]) * f64::from(b[c][i])).sum())
+    };
+    let precondition = |r: &[&mut [f32]; 3], z: &mut [&mut [f32]; 3]| {
+        for c in 0..3 {
+            z[c].par_iter_mut().enumerate().for_each(|(i, z)| *z = r[c][i] / diag[i]);
+        }
+    };
+    let r0 = dot(parts, &r, &r);
+    let goal = f64::from(tol).powi(2) * r0;
+    let mut rr = r0;
+    let mut it = 0;
+    if r0 > 0.0 {
+        precondition(&r, &mut z);
+        for c in 0..3 {
+            p[c].copy_from_slice(z[c]);
+        }
+        let mut rz = dot(parts, &r, &z);
+        while it < max_iterations && rr > goal {
+            implicit_apply(inp, coef, [&*p[0], &*p[1], &*p[2]], &mut ap);
+            let pap = dot(parts, &p, &ap);
+            if pap.is_nan() || pap <= 0.0 {
+                break;
+            }
+            let a = (rz / pap) as f32;
+            for c in 0..3 {
+                x[c].par_iter_mut().zip(p[c].par_iter()).for_each(|(x, p)| *x += a * p);
+                r[c].par_iter_mut().zip(ap[c].par_iter()).for_each(|(r, q)| *r -= a * q);
+            }
+            rr = dot(parts, &r, &r);
+            precondition(&r, &mut z);
+            let rz_new = dot(parts, &r, &z);
+            let beta = (rz_new / rz) as f32;
+            rz = rz_new;
+            for c in 0..3 {
+                p[c].par_iter_mut().zip(z[c].par_iter()).for_each(|(p, z)| *p = z + beta * *p);
+            }
+            it += 1;
+        }
+    }
+    let residual = if r0 > 0.0 { (rr / r0).sqrt() as f32 } else { 0.0 };
+    ImplicitStats { iterations: it, residual }
 }

@@ -72,6 +72,10 @@ pub struct Params {
     pub solid_granular: Vec<bool>,
     /// Lamé parameters of each solid body (`[[solid]]` order), Pa.
     pub solid_lame: Vec<Lame>,
+    /// Viscosity solved implicitly (`simulation.viscosity_solver`), and
+    /// the relative residual of its conjugate gradients.
+    pub implicit_viscosity: bool,
+    pub viscosity_tolerance: f32,
     /// Relative residual of the elastic conjugate gradients.
     pub elastic_tolerance: f32,
     /// Largest number of elastic conjugate-gradient iterations.
@@ -112,6 +116,9 @@ pub struct StepStats {
     pub max_drift_speed: f32,
     /// Largest Darcy speed max_k |u_rk| on the porous solids, m/s.
     pub max_darcy_speed: f32,
+    /// Conjugate-gradient iterations of the implicit viscosity solve (0
+    /// when explicit).
+    pub viscosity_iterations: u32,
     /// Conjugate-gradient iterations of the elastic solve (0 without solids).
     pub cg_iterations: u32,
     /// Relative residual |r|/|b| after the elastic solve.
@@ -146,6 +153,9 @@ struct Workspace {
     active: Vec<u32>,
     /// 1 for the active walls (reset each step through `active`).
     wall_flag: Vec<u8>,
+    /// Per block of fluid-fluid pairs: the implicit viscosity's pair
+    /// coefficients (kept for its capacity).
+    visc_coef: Vec<Vec<f32>>,
     /// Per block of fluid-fluid pairs: the pair limit of the conservative
     /// volume-fraction transport (kept for its capacity).
     pair_limit: Vec<Vec<f32>>,

@@ -1,16 +1,20 @@
 //! Pass 3, the non-pressure prediction (PHYSICS.md §2.4 item 4, §5):
 //! the viscosity of P-Eq. 23 and u* = u + dt (g + a^visc); with several
 //! phases with the phase pair weights, keeping a^visc for the drift
-//! velocities (P-Eq. 11's a).
+//! velocities (P-Eq. 11's a). a^visc is explicit (the velocities at the
+//! step's start) or implicit (of u*, a linear solve: `Params::implicit_viscosity`).
 
 use super::phases::PhaseState;
 use super::timing::{pass, PassTimes};
 use super::Params;
 use crate::store::FluidStore;
 use bumpalo::Bump;
+use porosph_kernels::blocks::nblocks;
 use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::neighbors::{PairLists, Points};
-use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
+use porosph_kernels::viscosity::{
+    predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
+};
 
 /// What pass 3 gives the later passes.
 pub(super) struct Prediction<'a> {
@@ -18,13 +22,17 @@ pub(super) struct Prediction<'a> {
     pub u_star: Vel<'a>,
     /// a^visc, m/s^2 (empty with one phase: only the drift reads it).
     pub a_visc: Vel<'a>,
+    /// Conjugate-gradient iterations of the implicit viscosity (0 if explicit).
+    pub iterations: u32,
 }
 
 /// Pass 3 over the fluid pairs `ff` (plain kernel gradients).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn predict<'a>(
     p: &Params,
     fluid: &FluidStore,
     ff: &PairLists,
+    visc_coef: &mut Vec<Vec<f32>>,
     ph: &PhaseState,
     dt: f32,
     arena: &'a Bump,
@@ -36,6 +44,7 @@ pub(super) fn predict<'a>(
     let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
     let (usx, usy, usz) = (zeros(n), zeros(n), zeros(n));
     let (avx, avy, avz) = (zeros(nm), zeros(nm), zeros(nm));
+    let mut iterations = 0;
     tm.time(pass::VISCOSITY, || {
         let inp = ViscosityInput {
             ff,
@@ -47,7 +56,32 @@ pub(super) fn predict<'a>(
             gravity: p.gravity,
             dt,
         };
-        if mixture {
+        if p.implicit_viscosity && n > 0 {
+            let alpha = mixture.then(|| &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice())));
+            let z3 = || [zeros(n), zeros(n), zeros(n)];
+            let scratch = ImplicitScratch {
+                diag: zeros(n),
+                r: z3(),
+                z: z3(),
+                p: z3(),
+                ap: z3(),
+                parts: arena.alloc_slice_fill_copy(nblocks(n), 0.0f64),
+            };
+            let u_star = VelMut { x: &mut *usx, y: &mut *usy, z: &mut *usz };
+            let tol = p.viscosity_tolerance;
+            iterations =
+                predict_velocity_implicit(&inp, alpha, visc_coef, scratch, tol, MAX_ITERATIONS, u_star).iterations;
+            if mixture {
+                // a^visc = (u* - u) / dt - g, for the drift velocities.
+                let (u, g) = ([&fluid.ux, &fluid.uy, &fluid.uz], p.gravity);
+                for (c, (a, us)) in [&mut *avx, &mut *avy, &mut *avz].into_iter().zip([&*usx, &*usy, &*usz]).enumerate()
+                {
+                    for (i, a) in a.iter_mut().enumerate() {
+                        *a = (us[i] - u[c][i]) / dt - g[c];
+                    }
+                }
+            }
+        } else if mixture {
             let alpha = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
             let u_star = VelMut { x: &mut *usx, y: &mut *usy, z: &mut *usz };
             let a_visc = VelMut { x: &mut *avx, y: &mut *avy, z: &mut *avz };
@@ -56,5 +90,8 @@ pub(super) fn predict<'a>(
             predict_velocity(&inp, usx, usy, usz);
         }
     });
-    Prediction { u_star: Vel { x: usx, y: usy, z: usz }, a_visc: Vel { x: avx, y: avy, z: avz } }
+    Prediction { u_star: Vel { x: usx, y: usy, z: usz }, a_visc: Vel { x: avx, y: avy, z: avz }, iterations }
 }
+
+/// Largest number of conjugate-gradient iterations of the implicit viscosity.
+const MAX_ITERATIONS: u32 = 500;

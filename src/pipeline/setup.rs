@@ -3,10 +3,11 @@
 
 use super::granular::{Granular, Mixed};
 use super::solid::{Peer2018, SolidModel};
+use super::step::explicit_viscosity_bound;
 use super::{Params, Simulation, StepStats, Workspace};
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
-    SolidMaterial,
+    SolidMaterial, ViscositySolver,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -49,6 +50,15 @@ impl Params {
             fraction_pressure: s.phase_pressure == PhasePressure::Fraction,
             solid_granular: scene.solids.iter().map(|b| matches!(b.model, SolidMaterial::Granular(_))).collect(),
             solid_lame: scene.solids.iter().map(|b| Lame { mu: b.shear_modulus, lambda: b.lame_lambda }).collect(),
+            implicit_viscosity: match s.viscosity_solver {
+                ViscositySolver::Explicit => false,
+                ViscositySolver::Implicit => true,
+                ViscositySolver::Auto => scene
+                    .phases
+                    .iter()
+                    .any(|p| p.viscosity > 0.0 && explicit_viscosity_bound(h, p.density, p.viscosity) < s.max_dt),
+            },
+            viscosity_tolerance: s.viscosity_tolerance,
             elastic_tolerance: s.elastic_tolerance,
             elastic_max_iterations: s.elastic_max_iterations,
             solid_group: {

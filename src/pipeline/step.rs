@@ -86,7 +86,8 @@ impl Simulation {
     }
 
     /// The time step rule of PHYSICS.md §7:
-    /// dt = min(max_dt, lambda h / max|u|, 0.125 h^2 rho_k / mu_k), and with
+    /// dt = min(max_dt, lambda h / max|u|, 0.125 h^2 rho_k / mu_k (explicit
+    /// viscosity only: [`explicit_viscosity_bound`])), and with
     /// two or more phases also lambda h / max_k|u_mk| and
     /// 0.1 h^2 / max_k sigma_k; `max_drift` is the largest of the last
     /// step's outer and inner drift speeds and Darcy speeds |u_rk| (the
@@ -98,9 +99,11 @@ impl Simulation {
         if max_speed > 0.0 {
             dt = dt.min(p.cfl * p.h / max_speed);
         }
-        for (&rho, &mu) in p.phase_density.iter().zip(&p.phase_viscosity) {
-            if mu > 0.0 {
-                dt = dt.min(0.125 * p.h * p.h * rho / mu);
+        if !p.implicit_viscosity {
+            for (&rho, &mu) in p.phase_density.iter().zip(&p.phase_viscosity) {
+                if mu > 0.0 {
+                    dt = dt.min(explicit_viscosity_bound(p.h, rho, mu));
+                }
             }
         }
         if p.mixture() {
@@ -154,6 +157,13 @@ impl Simulation {
     }
 }
 
+/// The largest stable dt of the explicit viscosity of a phase of density
+/// `rho` and viscosity `mu` at spacing `h`: 0.125 h^2 rho / mu (PHYSICS.md
+/// §7). The implicit solve has none.
+pub(super) fn explicit_viscosity_bound(h: f32, rho: f32, mu: f32) -> f32 {
+    0.125 * h * h * rho / mu
+}
+
 /// The solid particles and their model.
 struct Bodies<'a> {
     store: &'a mut SolidStore,
@@ -188,7 +198,8 @@ fn step_passes(
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
     let ph = phases::bookkeeping(p, fluid, porous, arena, tm);
     let vols = volumes::volumes(p, fluid, walls, solids, w, &ph, arena, tm);
-    let pred = prediction::predict(p, fluid, &w.ff, &ph, dt, arena, tm);
+    let pred = prediction::predict(p, fluid, &w.ff, &mut w.visc_coef, &ph, dt, arena, tm);
+    st.viscosity_iterations = pred.iterations;
     // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and
     // u_beta on the solids (P-Eqs. 1, 9, 15, 19); and Alg. 3's fluid terms
     // that need plain gradients: u_beta,f, q_f, grad p^pore_f, Gamma

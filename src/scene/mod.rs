@@ -134,6 +134,18 @@ pub struct Simulation {
     /// The phase pressures p_k of the drift velocities (P-Eq. 11).
     #[serde(default = "defaults::phase_pressure")]
     pub phase_pressure: PhasePressure,
+    /// The viscosity solver
+    ///
+    /// How P-Eq. 23's viscosity enters the step (PHYSICS.md §5, §7).
+    #[serde(default = "defaults::viscosity_solver")]
+    pub viscosity_solver: ViscositySolver,
+    /// The relative residual of the implicit viscosity solve
+    ///
+    /// |r| / |r_0| at which its conjugate gradients stop (r_0 the residual
+    /// of u + dt g).
+    #[serde(default = "defaults::viscosity_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
+    pub viscosity_tolerance: f32,
     /// The relative residual of the elastic solve
     ///
     /// |r| / |b| at which the conjugate gradients stop (PHYSICS.md §3.3).
@@ -170,7 +182,7 @@ pub struct Simulation {
 
 /// The defaults of `[simulation]`.
 mod defaults {
-    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport};
+    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, ViscositySolver};
 
     pub fn gravity() -> [f32; 3] {
         [0.0, -9.81, 0.0]
@@ -213,6 +225,12 @@ mod defaults {
     pub fn phase_pressure() -> PhasePressure {
         PhasePressure::Shared
     }
+    pub fn viscosity_solver() -> ViscositySolver {
+        ViscositySolver::Auto
+    }
+    pub fn viscosity_tolerance() -> f32 {
+        1e-3
+    }
     pub fn elastic_tolerance() -> f32 {
         1e-4
     }
@@ -247,6 +265,23 @@ pub enum PhasePressure {
     /// 2 tau p (limiting dt), and stops gravity separation at a mixed
     /// composition.
     Fraction,
+}
+
+/// `viscosity_solver`: explicit or implicit viscosity (P-Eq. 23;
+/// `porosph_kernels::viscosity`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum ViscositySolver {
+    /// `"auto"` (default): implicit where the explicit bound
+    /// 0.125 d^2 rho_k / mu_k of some phase is below `max_dt`, else
+    /// explicit (the same result as before where the bound never held dt).
+    Auto,
+    /// `"explicit"`: a^visc from the velocities at the step's start; dt is
+    /// held to 0.125 d^2 rho_k / mu_k.
+    Explicit,
+    /// `"implicit"`: backward Euler, a linear solve per step (conjugate
+    /// gradients); no viscosity bound on dt.
+    Implicit,
 }
 
 /// `phase_transport`: the form of the volume-fraction transport (P-Eq. 2);
