@@ -280,13 +280,7 @@ fn execute(sim: &mut Simulation, opts: &RunOptions) -> Result<(), String> {
     match run(sim, opts) {
         Ok(s) => {
             if !opts.quiet {
-                eprintln!(
-                    "porosph: {} steps, {} frames, {:.1} s wall, {:.3} M particle-steps/s",
-                    s.steps,
-                    s.frames,
-                    s.wall_seconds,
-                    s.particle_steps_per_second / 1e6
-                );
+                eprintln!("{s}");
             }
             Ok(())
         }
@@ -436,10 +430,11 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
         take_output(claim)?;
         if !a.quiet {
             eprintln!(
-                "porosph: resuming {} at step {step} (t = {time} s): {} fluid + {} wall particles, \
+                "porosph: resuming {} at step {step} (t = {time} s): {} fluid + {} solid + {} wall particles, \
                  {} threads, output in {}",
                 path.display(),
                 sim.fluid.len(),
+                sim.solids.len(),
                 sim.walls.len(),
                 rayon::current_num_threads(),
                 out.display()

@@ -9,7 +9,7 @@
 //!                            fluid_particles (u64), wall_particles (u64),
 //!                            solid_particles (u64),
 //!                            failure (string; "" unless written when a step failed)
-//! /scene              u8 [n]: the scene text (UTF-8) exactly as read; attrs origin, xxh64
+//! /scene              u8 [n]: the scene text as run (UTF-8): as read, mesh paths made absolute; attrs origin, xxh64
 //! /params             attrs: the parameters porosph derived from the scene
 //!                     (h, kernel_support, gravity, max_dt, cfl, ...), units
 //! /run                attrs: where the run stands (frames written, next frame
@@ -600,8 +600,18 @@ impl<'a> Reader<'a> {
         h.update(&bytes);
         self.check("/scene".to_string(), stored, h.finish())?;
         let text = String::from_utf8(bytes).map_err(|_| "/scene is not UTF-8 text".to_string())?;
-        let scene = Scene::from_toml_str(&text, &origin)
-            .map_err(|e| format!("the stored scene text is not a valid scene: {e}"))?;
+        let scene = Scene::from_toml_str(&text, &origin).map_err(|e| {
+            // Since mesh paths are stored absolute (`Scene::with_absolute_mesh_paths`),
+            // only an older checkpoint's relative ones depend on where
+            // porosph runs.
+            let hint = if e.key.contains("mesh") && e.reason.contains("cannot read") {
+                " (the checkpoint names the mesh file relative to the directory its run \
+                     started in, or the file has moved: resume from that directory, or put the mesh back)"
+            } else {
+                ""
+            };
+            format!("the stored scene cannot be rebuilt: {e}{hint}")
+        })?;
 
         let params = file.group("params").map_err(|_| "missing group /params".to_string())?;
         for (name, want) in param_values(&Params::from_scene(&scene)) {

@@ -21,7 +21,7 @@ mod volumes;
 pub use granular::{Granular, Mixed};
 pub use restore::SavedState;
 pub use solid::{Current, Peer2018, SolidModel, SolidStats};
-pub use step::StepError;
+pub use step::{DtLimit, StepError};
 pub use timing::{PassTimes, PASSES};
 
 use crate::scene::{Porous, Scene};

@@ -94,25 +94,37 @@ impl Simulation {
     /// step passes max(max_drift_speed, max_darcy_speed); PHYSICS.md writes
     /// 0.4 = lambda's default).
     pub fn next_dt(&self, max_speed: f32, max_drift: f32) -> f32 {
+        self.dt_rule(max_speed, max_drift).0
+    }
+
+    /// [`Simulation::next_dt`] and the term of its rule that set it (of
+    /// equal terms, the first in the rule's order).
+    pub fn dt_rule(&self, max_speed: f32, max_drift: f32) -> (f32, DtLimit) {
         let p = &self.params;
-        let mut dt = p.max_dt;
+        let mut dt = (p.max_dt, DtLimit::MaxDt);
+        // As f32::min: a smaller term wins, an equal or NaN one does not.
+        let mut bound = |v: f32, by: DtLimit| {
+            if v < dt.0 {
+                dt = (v, by);
+            }
+        };
         if max_speed > 0.0 {
-            dt = dt.min(p.cfl * p.h / max_speed);
+            bound(p.cfl * p.h / max_speed, DtLimit::Cfl);
         }
         if !p.implicit_viscosity {
             for (&rho, &mu) in p.phase_density.iter().zip(&p.phase_viscosity) {
                 if mu > 0.0 {
-                    dt = dt.min(explicit_viscosity_bound(p.h, rho, mu));
+                    bound(explicit_viscosity_bound(p.h, rho, mu), DtLimit::Viscosity);
                 }
             }
         }
         if p.mixture() {
             if max_drift > 0.0 {
-                dt = dt.min(p.cfl * p.h / max_drift);
+                bound(p.cfl * p.h / max_drift, DtLimit::Drift);
             }
             let sigma = p.drift_diffusivity();
             if sigma > 0.0 {
-                dt = dt.min(0.1 * p.h * p.h / sigma);
+                bound(0.1 * p.h * p.h / sigma, DtLimit::Diffusion);
             }
         }
         dt
@@ -153,6 +165,38 @@ impl Simulation {
             } else {
                 format!("{what} is NaN or infinite")
             },
+        }
+    }
+}
+
+/// The term of the time step rule ([`Simulation::dt_rule`]) that set a dt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DtLimit {
+    /// `max_dt` of the scene.
+    MaxDt,
+    /// lambda h / max|u|.
+    Cfl,
+    /// 0.125 h^2 rho_k / mu_k of the explicit viscosity.
+    Viscosity,
+    /// lambda h / max_k|u_mk|, the drift and Darcy speeds.
+    Drift,
+    /// 0.1 h^2 / max_k sigma_k, the drift diffusion.
+    Diffusion,
+}
+
+impl DtLimit {
+    /// Every term, in the order of the rule.
+    pub const ALL: [DtLimit; 5] =
+        [DtLimit::MaxDt, DtLimit::Cfl, DtLimit::Viscosity, DtLimit::Drift, DtLimit::Diffusion];
+
+    /// How the end-of-run summary names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            DtLimit::MaxDt => "max_dt",
+            DtLimit::Cfl => "CFL",
+            DtLimit::Viscosity => "viscosity",
+            DtLimit::Drift => "drift/Darcy",
+            DtLimit::Diffusion => "drift diffusion",
         }
     }
 }

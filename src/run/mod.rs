@@ -9,9 +9,11 @@ mod checkpoints;
 mod frame;
 pub mod interrupt;
 pub mod output;
+mod summary;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
 pub use frame::{kind, INNER_SHADE};
+pub use summary::RunSummary;
 
 use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;
@@ -22,6 +24,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use summary::Tally;
 
 /// When a run stops and what it writes.
 #[derive(Clone, Debug)]
@@ -73,17 +76,6 @@ pub struct Continuation {
     pub frames: u64,
     /// Simulated time of its next frame, s.
     pub next_frame: f64,
-}
-
-/// What a finished run did.
-#[derive(Clone, Debug, Default)]
-pub struct RunSummary {
-    /// Steps taken by this run.
-    pub steps: u64,
-    /// Frames written by this run.
-    pub frames: u64,
-    pub wall_seconds: f64,
-    pub particle_steps_per_second: f64,
 }
 
 /// Why a run stopped early.
@@ -221,6 +213,9 @@ fn remove_later_frames(dir: &Path, series: &mut SeriesWriter, frames: u64) -> Re
 pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunError> {
     let frames_dir = opts.out.join("frames");
     create_dir(&frames_dir)?;
+    // The scene as run, rerunnable from anywhere: mesh paths made absolute
+    // (so also in the checkpoints, which store this text).
+    sim.scene.text = sim.scene.with_absolute_mesh_paths();
     let scene_copy = opts.out.join("scene.toml");
     std::fs::write(&scene_copy, &sim.scene.text).map_err(|e| IoError::new(&scene_copy, e))?;
     let stats_path = opts.out.join("stats.csv");
@@ -293,6 +288,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     }
     let start = Instant::now();
     let n = sim.fluid.len() as f64;
+    let mut tally = Tally::start(sim);
     let done = |sim: &Simulation| match (stop_step, stop_time) {
         (Some(s), _) => sim.step >= s,
         (None, Some(t)) => sim.time >= t - 1e-9,
@@ -328,6 +324,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             }
         };
         let ms_step = t.elapsed().as_secs_f64() * 1e3;
+        tally.step(sim, &st);
         let mut row = vec![
             sim.step as f64,
             sim.time,
@@ -360,6 +357,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
                 bar.abandon();
                 return Err(RunError::Checkpoint { error, last_good: checkpoints.last_good().map(Path::to_path_buf) });
             }
+            tally.checkpoint();
         }
         let el = start.elapsed().as_secs_f64().max(1e-9);
         let taken = (sim.step - first_step) as f64;
@@ -370,12 +368,5 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         bar.set_message(format!("t = {:.3} s, {:.1} steps/s, {} it", sim.time, taken / el, st.iterations));
     }
     bar.finish_and_clear();
-    let wall = start.elapsed().as_secs_f64();
-    let steps = sim.step - first_step;
-    Ok(RunSummary {
-        steps,
-        frames: frames - first_frame,
-        wall_seconds: wall,
-        particle_steps_per_second: n * steps as f64 / wall.max(1e-9),
-    })
+    Ok(tally.finish(sim, frames - first_frame, start.elapsed().as_secs_f64()))
 }

@@ -36,7 +36,8 @@ pub struct Scene {
     pub solids: Vec<Solid>,
     /// Where the scene came from (a path, or `<built-in NAME>`), for messages.
     pub origin: String,
-    /// The scene text exactly as read (checkpoints store it).
+    /// The scene text exactly as read (a run makes its mesh paths absolute,
+    /// [`Scene::with_absolute_mesh_paths`], and checkpoints store that).
     pub text: String,
 }
 

@@ -74,13 +74,73 @@ impl Scene {
         let de = toml::de::Deserializer::from(root.clone());
         let file: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| doc.serde_error(e))?;
         check_numbers(&doc)?;
-        let base = match Path::new(origin).parent() {
-            Some(dir) if !origin.starts_with('<') => dir.to_path_buf(),
-            _ => PathBuf::new(),
-        };
-        let cx = Cx { doc: &doc, schema: Schema::get(), base };
+        let cx = Cx { doc: &doc, schema: Schema::get(), base: mesh_base(origin) };
         let scene = cx.scene(file)?;
         Ok(Scene { origin: origin.to_string(), text: text.to_string(), ..scene })
+    }
+
+    /// The scene text with every mesh path (`mesh = { path = ... }`) made
+    /// absolute, so that the text reads the same meshes from any
+    /// directory: what a run writes to `OUT/scene.toml` and its
+    /// checkpoints. Everything else (comments, layout) is kept; a scene
+    /// without meshes, or with absolute mesh paths, comes back unchanged.
+    pub fn with_absolute_mesh_paths(&self) -> String {
+        let Ok(root) = DeTable::parse(&self.text) else { return self.text.clone() };
+        let mut paths = Vec::new();
+        mesh_paths(root.get_ref(), &mut paths);
+        paths.sort_by_key(|(span, _)| span.start);
+        let base = mesh_base(&self.origin);
+        let mut out = String::with_capacity(self.text.len());
+        let mut at = 0;
+        for (span, path) in paths {
+            let p = Path::new(&path);
+            if p.is_absolute() || span.start < at {
+                continue;
+            }
+            let joined = base.join(p);
+            let Some(abs) = joined.canonicalize().or_else(|_| std::path::absolute(&joined)).ok() else { continue };
+            let Some(abs) = abs.to_str() else { continue };
+            out.push_str(&self.text[at..span.start]);
+            out.push_str(&toml::Value::String(abs.to_string()).to_string());
+            at = span.end;
+        }
+        out.push_str(&self.text[at..]);
+        out
+    }
+}
+
+/// The directory mesh paths of the scene text from `origin` are relative
+/// to: the directory of `origin`, or the current one for a bare file name
+/// or a built-in scene.
+fn mesh_base(origin: &str) -> PathBuf {
+    match Path::new(origin).parent() {
+        Some(dir) if !origin.starts_with('<') => dir.to_path_buf(),
+        _ => PathBuf::new(),
+    }
+}
+
+/// The span and text of every string at a key `path` of a table `mesh`,
+/// anywhere in `table`.
+fn mesh_paths(table: &DeTable<'_>, out: &mut Vec<(std::ops::Range<usize>, String)>) {
+    use toml::de::DeValue;
+    fn walk(key: &str, v: &toml::Spanned<DeValue<'_>>, out: &mut Vec<(std::ops::Range<usize>, String)>) {
+        match v.get_ref() {
+            DeValue::Table(t) => {
+                if key == "mesh" {
+                    if let Some(p) = t.get("path") {
+                        if let DeValue::String(s) = p.get_ref() {
+                            out.push((p.span(), s.to_string()));
+                        }
+                    }
+                }
+                mesh_paths(t, out);
+            }
+            DeValue::Array(a) => a.iter().for_each(|e| walk(key, e, out)),
+            _ => {}
+        }
+    }
+    for (k, v) in table.iter() {
+        walk(k.get_ref(), v, out);
     }
 }
 

@@ -1,0 +1,177 @@
+//! The end of a run in a few lines a user can read: simulated time and
+//! steps, the time step (mean, least, and which term of the rule held it),
+//! the wall time per simulated second and the particle-steps per second
+//! (fluid and solid), the pressure solve's mean iterations, and with two
+//! or more phases how much each phase's mass changed.
+
+use crate::pipeline::{DtLimit, Simulation, StepStats};
+use std::fmt;
+
+/// What a finished run did.
+#[derive(Clone, Debug, Default)]
+pub struct RunSummary {
+    /// Steps taken by this run.
+    pub steps: u64,
+    /// Frames written by this run.
+    pub frames: u64,
+    /// Checkpoints written by this run (on schedule).
+    pub checkpoints: u64,
+    pub wall_seconds: f64,
+    /// Simulated time where the run started and where it stopped, s.
+    pub start_time: f64,
+    pub end_time: f64,
+    pub fluid_particles: usize,
+    pub solid_particles: usize,
+    /// (fluid + solid particles) x steps / wall seconds.
+    pub particle_steps_per_second: f64,
+    /// Sum and least of the steps' dt, s (least: infinite without steps).
+    pub dt_sum: f64,
+    pub dt_min: f64,
+    /// Steps whose dt each term of the rule set, in the order of
+    /// [`DtLimit::ALL`].
+    pub dt_held: [u64; DtLimit::ALL.len()],
+    /// Steps whose dt was set before this run, so that its term is not
+    /// known here: the first step of a resumed run (the checkpoint's dt).
+    pub dt_held_before: u64,
+    /// Pressure solve iterations, summed over the steps.
+    pub iterations: u64,
+    /// Per phase: its name and (mass at the end - mass at the start) /
+    /// mass at the start (NaN if it had no mass).
+    pub mass_change: Vec<(String, f64)>,
+}
+
+/// Tallies the steps of a run as it goes.
+pub(super) struct Tally {
+    summary: RunSummary,
+    masses: Vec<f64>,
+    /// The term that set the dt of the next step (`None`: set before the run).
+    next: Option<DtLimit>,
+}
+
+impl Tally {
+    pub fn start(sim: &Simulation) -> Tally {
+        Tally {
+            summary: RunSummary {
+                start_time: sim.time,
+                end_time: sim.time,
+                dt_min: f64::INFINITY,
+                fluid_particles: sim.fluid.len(),
+                solid_particles: sim.solids.len(),
+                ..RunSummary::default()
+            },
+            masses: sim.phase_masses(),
+            // A new run's first dt is the rule's at the initial speeds and
+            // the drift speed estimate (`Simulation::new`).
+            next: (sim.step == 0)
+                .then(|| sim.dt_rule(sim.max_speed(), sim.params.drift_speed_estimate()))
+                .and_then(|(dt, by)| (dt.to_bits() == sim.dt.to_bits()).then_some(by)),
+        }
+    }
+
+    /// Counts the step `sim` just took, whose stats are `st`.
+    pub fn step(&mut self, sim: &Simulation, st: &StepStats) {
+        let s = &mut self.summary;
+        s.steps += 1;
+        s.dt_sum += f64::from(st.dt);
+        s.dt_min = s.dt_min.min(f64::from(st.dt));
+        s.iterations += u64::from(st.iterations);
+        match self.next {
+            Some(l) => s.dt_held[l as usize] += 1,
+            None => s.dt_held_before += 1,
+        }
+        // The rule as the step applied it for the next dt; a dt it does not
+        // reproduce bit for bit is counted as set before the run.
+        let (dt, by) = sim.dt_rule(st.max_speed, st.max_drift_speed.max(st.max_darcy_speed));
+        self.next = (dt.to_bits() == sim.dt.to_bits()).then_some(by);
+    }
+
+    pub fn checkpoint(&mut self) {
+        self.summary.checkpoints += 1;
+    }
+
+    pub fn finish(mut self, sim: &Simulation, frames: u64, wall_seconds: f64) -> RunSummary {
+        let s = &mut self.summary;
+        s.frames = frames;
+        s.wall_seconds = wall_seconds;
+        s.end_time = sim.time;
+        let particles = (s.fluid_particles + s.solid_particles) as f64;
+        s.particle_steps_per_second = particles * s.steps as f64 / wall_seconds.max(1e-9);
+        s.mass_change = sim
+            .scene
+            .phases
+            .iter()
+            .zip(self.masses.iter().zip(sim.phase_masses()))
+            .map(|(p, (&m0, m1))| (p.name.clone(), if m0 > 0.0 { (m1 - m0) / m0 } else { f64::NAN }))
+            .collect();
+        self.summary
+    }
+}
+
+/// Seconds in the unit that reads best: s, ms or us.
+fn seconds(t: f64) -> String {
+    if t >= 1.0 {
+        format!("{t:.3} s")
+    } else if t >= 1e-4 {
+        format!("{:.3} ms", t * 1e3)
+    } else {
+        format!("{:.3} us", t * 1e6)
+    }
+}
+
+fn plural(n: u64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+impl fmt::Display for RunSummary {
+    /// Lines of the form `porosph: ...`, without a final newline.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let simulated = self.end_time - self.start_time;
+        write!(
+            f,
+            "porosph: done: t = {:.4} to {:.4} s ({simulated:.4} s simulated) in {}, {}, {}, {:.1} s wall",
+            self.start_time,
+            self.end_time,
+            plural(self.steps, "step", "steps"),
+            plural(self.frames, "frame", "frames"),
+            plural(self.checkpoints, "checkpoint", "checkpoints"),
+            self.wall_seconds
+        )?;
+        if self.steps == 0 {
+            return Ok(());
+        }
+        let mut held: Vec<String> = DtLimit::ALL
+            .iter()
+            .zip(&self.dt_held)
+            .filter(|(_, &n)| n > 0)
+            .map(|(l, &n)| format!("{} {n}", l.name()))
+            .collect();
+        if self.dt_held_before > 0 {
+            held.push(format!("the checkpoint's dt {}", self.dt_held_before));
+        }
+        write!(
+            f,
+            "\nporosph:   dt: mean {}, least {}; steps held by {}",
+            seconds(self.dt_sum / self.steps as f64),
+            seconds(self.dt_min),
+            held.join(", ")
+        )?;
+        write!(
+            f,
+            "\nporosph:   speed: {:.1} s wall per simulated s, {:.3} M particle-steps/s ({} fluid + {} solid particles)",
+            self.wall_seconds / simulated.max(1e-300),
+            self.particle_steps_per_second / 1e6,
+            self.fluid_particles,
+            self.solid_particles
+        )?;
+        write!(
+            f,
+            "\nporosph:   pressure solve: {:.1} iterations per step (mean)",
+            self.iterations as f64 / self.steps as f64
+        )?;
+        if self.mass_change.len() > 1 {
+            let m: Vec<String> = self.mass_change.iter().map(|(n, c)| format!("{n} {c:+.2e}")).collect();
+            write!(f, "\nporosph:   mass change over the run (relative): {}", m.join(", "))?;
+        }
+        Ok(())
+    }
+}
