@@ -32,14 +32,14 @@ struct RunArgs {
     threads: Option<usize>,
     /// Stop at this simulated time, s (run: default the scene's end_time;
     /// resume: default where the saved run was going to stop).
-    #[arg(long, conflicts_with = "steps")]
+    #[arg(long, conflicts_with = "steps", allow_negative_numbers = true)]
     until: Option<f64>,
     /// Stop after this many steps (resume: this many more steps).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_steps)]
     steps: Option<u64>,
     /// Simulated time between frames, s (run: default the scene's
     /// frame_interval; resume: default the saved run's).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     frame_every: Option<f64>,
     /// Write a checkpoint (complete state, HDF5) to OUT/checkpoints/ckpt_<step>.h5
     /// every SECONDS of simulated time (`0.1` or `0.1s`) or every N steps
@@ -223,13 +223,18 @@ fn load_scene(arg: Option<&str>) -> Result<Scene, String> {
     Err(format!("{name}: no such file, and not a built-in scene (see `porosph scenes`)"))
 }
 
+/// A number of seconds that must be > 0 (clap reads negative numbers, so
+/// that `--until -1` is this error rather than an unknown argument).
 fn positive(name: &str, v: Option<f64>) -> Result<(), String> {
     match v {
-        Some(x) if !(x.is_finite() && x > 0.0) => {
-            Err(format!("--{name} must be a positive number of seconds, got {x}"))
-        }
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("--{name} must be > 0 s, got {x}")),
         _ => Ok(()),
     }
+}
+
+/// `--steps N`: a whole number of steps, 0 or more.
+fn parse_steps(s: &str) -> Result<u64, String> {
+    s.trim().parse().map_err(|_| format!("expected a whole number of steps (0 or more), got {s:?}"))
 }
 
 impl RunArgs {
@@ -461,9 +466,26 @@ fn inspect_command(file: &Path) -> Result<(), String> {
 
 /// Renders one frame file to `out`.
 fn render_file(input: &Path, out: &Path, opts: &RenderOptions) -> Result<(), String> {
-    let frame = porosph::io::read_frame(input).map_err(|e| e.to_string())?;
+    let frame = porosph::io::read_frame(input).map_err(|e| match file_kind(input) {
+        Ok(FileKind::Checkpoint) => not_a_frame(input),
+        _ => e.to_string(),
+    })?;
     let image = render::render(&frame, opts).map_err(|e| format!("{}: {e}", input.display()))?;
     image.write_png(out).map_err(|e| e.to_string())
+}
+
+/// What `render` says of a checkpoint: what it is, and where the frames are.
+fn not_a_frame(checkpoint: &Path) -> String {
+    let frames = run_dir_of(checkpoint).join("frames");
+    let c = output::shell_quote(checkpoint);
+    format!(
+        "{}: a porosph checkpoint, not a frame: render draws frames (.vtkhdf). See what it holds with \
+         `porosph inspect {c}`; render a frame of its run, from {} (`porosph render {}`), or \
+         `porosph resume {c}` to write more frames",
+        checkpoint.display(),
+        frames.display(),
+        output::shell_quote(&frames.join("frame_NNNNN.vtkhdf"))
+    )
 }
 
 /// The frame files of a run directory, in name order.

@@ -376,3 +376,41 @@ fn bad_meshes_are_errors_naming_the_file_and_the_reason() {
     let e = mesh_error(&format!("path = {}, translate = [0.0, 2e4, 0.0]", toml_path(&path)));
     assert_eq!(e.key, "fluid[0].mesh.translate[1]", "{e}");
 }
+
+/// Issue 36 item 8: a directory is said to be one; a bad OBJ line is named
+/// by `file:line`, the reason and the line's text.
+#[test]
+fn a_directory_or_a_bad_obj_line_is_named() {
+    let dir = TempDir::new("bad-lines");
+    let p = "fluid[0].mesh.path";
+    let folder = dir.path("folder.obj");
+    std::fs::create_dir_all(&folder).expect("mkdir");
+    let e = mesh_error(&format!("path = {}", toml_path(&folder)));
+    assert_eq!(e.key, p, "{e}");
+    assert!(e.reason.contains(&format!("mesh file {}: a directory, not a mesh file", folder.display())), "{e}");
+
+    let cases = [
+        (
+            "letter.obj",
+            "# a cube\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n",
+            5,
+            "face parse error (the line reads `f 1 2 x`)",
+        ),
+        ("vt.obj", "v 0 0 0\nvt 1 zz\nv 1 0 0", 2, "texcoord parse error (the line reads `vt 1 zz`)"),
+        (
+            "index.obj",
+            "v 0 0 0\nv 1 0 0\nf 1 2 7\nv 0 1 0\n",
+            3,
+            "face vertex index 7 names no vertex (the file has 3, 2 before this line) (the line reads `f 1 2 7`)",
+        ),
+    ];
+    for (name, text, line, reason) in cases {
+        let path = dir.path(name);
+        std::fs::write(&path, text).expect("write");
+        let e = mesh_error(&format!("path = {}", toml_path(&path)));
+        println!("{e}");
+        assert_eq!(e.key, p, "{e}");
+        let want = format!("mesh file {}:{line}: not a readable OBJ file: {reason}", path.display());
+        assert!(e.reason.contains(&want), "{e}\nwanted: {want}");
+    }
+}

@@ -79,11 +79,22 @@ pub fn survey(dir: &Path) -> Result<Option<Survey>, OutputError> {
     let meta = match fs::symlink_metadata(dir) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        // A folder on the way is a file: name it.
+        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+            let file = dir.ancestors().skip(1).find(|a| fs::metadata(a).is_ok_and(|m| !m.is_dir()));
+            return Err(OutputError(match file {
+                Some(f) => {
+                    format!("--out {}: {} is a file, not a directory; choose another --out", dir.display(), f.display())
+                }
+                None => format!("--out {}: cannot read: {e}", dir.display()),
+            }));
+        }
         Err(e) => return Err(OutputError(format!("{}: cannot read: {e}", dir.display()))),
     };
     if !fs::metadata(dir).map(|m| m.is_dir()).unwrap_or(meta.is_dir()) {
         return Err(OutputError(format!(
-            "--out {}: exists and is not a directory; choose another --out",
+            "--out {} names a file, not a directory (a run writes frames/, checkpoints/ and \
+             stats.csv into a directory); choose another --out",
             dir.display()
         )));
     }

@@ -28,7 +28,7 @@ use robust::{orient2d, Coord};
 use std::collections::HashMap;
 use std::fmt;
 use std::fs;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
 
 /// Where a mesh comes from and how it is placed: each vertex v of the file
@@ -40,6 +40,30 @@ pub struct MeshSource {
     pub scale: f32,
     /// m.
     pub translate: [f32; 3],
+}
+
+/// Why a mesh file cannot be used: the reason (without the file name) and,
+/// for a bad line of an OBJ file, its number.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshError {
+    /// 1-based.
+    pub line: Option<usize>,
+    pub reason: String,
+}
+
+impl From<String> for MeshError {
+    fn from(reason: String) -> Self {
+        MeshError { line: None, reason }
+    }
+}
+
+impl fmt::Display for MeshError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(l) => write!(f, "line {l}: {}", self.reason),
+            None => write!(f, "{}", self.reason),
+        }
+    }
 }
 
 /// A closed triangle surface, placed in the scene (coordinates in m), with
@@ -75,16 +99,19 @@ impl fmt::Debug for TriMesh {
 impl TriMesh {
     /// Reads `source.path` (by its extension: `.obj` or `.stl`), places it,
     /// and checks it. Errors say what is wrong, without the file name.
-    pub fn load(source: MeshSource) -> Result<TriMesh, String> {
+    pub fn load(source: MeshSource) -> Result<TriMesh, MeshError> {
         let path = &source.path;
-        fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+        let meta = fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+        if meta.is_dir() {
+            return Err("a directory, not a mesh file: give the path of an .obj or .stl file".to_string().into());
+        }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         let (vertices, triangles) = match ext.as_deref() {
             Some("obj") => read_obj(path)?,
             Some("stl") => read_stl(path)?,
-            _ => return Err("unknown mesh format: expected a file name ending in .obj or .stl".to_string()),
+            _ => return Err("unknown mesh format: expected a file name ending in .obj or .stl".to_string().into()),
         };
-        TriMesh::new(source, &vertices, &triangles)
+        Ok(TriMesh::new(source, &vertices, &triangles)?)
     }
 
     /// A mesh from vertices (as in the file, before `scale` and `translate`)
@@ -573,13 +600,43 @@ fn closest_on_triangle(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
 type Triangles = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
 /// The vertices and triangles of an OBJ file (all its objects; polygons
-/// split into triangles; materials are not read).
-fn read_obj(path: &std::path::Path) -> Result<Triangles, String> {
+/// split into triangles; materials are not read). A line `tobj` cannot
+/// read is named by its number and text.
+fn read_obj(path: &std::path::Path) -> Result<Triangles, MeshError> {
     let file = fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let options =
         tobj::LoadOptions { triangulate: true, ignore_points: true, ignore_lines: true, ..Default::default() };
-    let (models, _) = tobj::load_obj_buf(&mut BufReader::new(file), &options, |_| Err(tobj::LoadError::OpenFileFailed))
-        .map_err(|e| format!("not a readable OBJ file: {e}"))?;
+    let mut reader = LineCounter::new(BufReader::new(file));
+    let (models, _) = match tobj::load_obj_buf(&mut reader, &options, |_| Err(tobj::LoadError::OpenFileFailed)) {
+        Ok(m) => m,
+        Err(e) if reader.at_end() => {
+            // tobj checks face indices when an object ends: find the face.
+            if e == tobj::LoadError::FaceVertexOutOfBounds {
+                if let Some(bad) = fs::read(path).ok().and_then(|b| bad_face(&b)) {
+                    return Err(bad);
+                }
+            }
+            return Err(format!("not a readable OBJ file: {e} (at the end of the file)").into());
+        }
+        Err(e) => {
+            let line = reader.line();
+            let text = fs::read(path).ok().and_then(|b| {
+                let l = b.split(|&c| c == b'\n').nth(line.wrapping_sub(1))?;
+                let l = String::from_utf8_lossy(l);
+                let l = l.trim();
+                Some(if l.chars().count() > 60 {
+                    format!("{}...", l.chars().take(60).collect::<String>())
+                } else {
+                    l.to_string()
+                })
+            });
+            let reads = match text {
+                Some(t) if !t.is_empty() => format!(" (the line reads `{t}`)"),
+                _ => String::new(),
+            };
+            return Err(MeshError { line: Some(line), reason: format!("not a readable OBJ file: {e}{reads}") });
+        }
+    };
     let mut vertices = Vec::new();
     let mut triangles = Vec::new();
     for m in &models {
@@ -588,6 +645,100 @@ fn read_obj(path: &std::path::Path) -> Result<Triangles, String> {
         triangles.extend(m.mesh.indices.chunks_exact(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
     }
     Ok((vertices, triangles))
+}
+
+/// The first face line of OBJ text whose vertex index names no vertex
+/// (1 to the file's count, or -1 to minus the count before the line).
+fn bad_face(text: &[u8]) -> Option<MeshError> {
+    let text = String::from_utf8_lossy(text);
+    let total = text.lines().filter(|l| l.split_whitespace().next() == Some("v")).count();
+    let mut before = 0i64;
+    for (n, l) in text.lines().enumerate() {
+        let mut words = l.split_whitespace();
+        match words.next() {
+            Some("v") => before += 1,
+            Some("f") => {
+                for w in words {
+                    let Ok(i) = w.split('/').next().unwrap_or("").parse::<i64>() else { continue };
+                    if i == 0 || i > total as i64 || i < -before {
+                        return Some(MeshError {
+                            line: Some(n + 1),
+                            reason: format!(
+                                "not a readable OBJ file: face vertex index {i} names no vertex (the file has \
+                                 {total}, {before} before this line) (the line reads `{}`)",
+                                l.trim()
+                            ),
+                        });
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// A reader that counts the lines it hands out, so that a parser's error
+/// can be placed: `tobj` reads line by line and stops at the first bad one.
+struct LineCounter<R> {
+    inner: R,
+    newlines: usize,
+    /// Whether bytes after the last newline were handed out.
+    partial: bool,
+    eof: bool,
+}
+
+impl<R: BufRead> LineCounter<R> {
+    fn new(inner: R) -> Self {
+        LineCounter { inner, newlines: 0, partial: false, eof: false }
+    }
+
+    /// The number (1-based) of the line read last.
+    fn line(&self) -> usize {
+        self.newlines + usize::from(self.partial || self.newlines == 0)
+    }
+
+    /// Whether the whole file was read.
+    fn at_end(&self) -> bool {
+        self.eof
+    }
+
+    fn count(&mut self, bytes: &[u8]) {
+        if let Some(last) = bytes.last() {
+            self.newlines += bytes.iter().filter(|&&b| b == b'\n').count();
+            self.partial = *last != b'\n';
+        }
+    }
+}
+
+impl<R: BufRead> Read for LineCounter<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.eof |= n == 0 && !buf.is_empty();
+        self.count(&buf[..n]);
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for LineCounter<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        let b = self.inner.fill_buf()?;
+        self.eof |= b.is_empty();
+        Ok(b)
+    }
+
+    fn consume(&mut self, amt: usize) {
+        // The buffer is filled (consume follows fill_buf): this reads nothing.
+        if let Ok(b) = self.inner.fill_buf() {
+            let n = amt.min(b.len());
+            let (newlines, last) = (b[..n].iter().filter(|&&c| c == b'\n').count(), b[..n].last().copied());
+            if let Some(last) = last {
+                self.newlines += newlines;
+                self.partial = last != b'\n';
+            }
+        }
+        self.inner.consume(amt);
+    }
 }
 
 /// The vertices and triangles of an STL file, ASCII or binary.

@@ -14,7 +14,7 @@ mod parse;
 
 pub use file::{schema, schema_text};
 pub use geometry::{sample_fluid, sample_solids, sample_walls, sdf, SampledFluid, SampledSolids, SampledWalls};
-pub use mesh::{MeshSource, TriMesh};
+pub use mesh::{MeshError, MeshSource, TriMesh};
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};

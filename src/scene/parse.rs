@@ -634,8 +634,13 @@ impl Cx<'_> {
         self.point_in_range(&spath.key("translate"), m.translate, Some(d))?;
         let file = self.base.join(&m.path);
         let source = MeshSource { path: file.clone(), scale: m.scale, translate: m.translate };
-        let mesh = TriMesh::load(source)
-            .map_err(|reason| self.err(&spath.key("path"), format!("mesh file {}: {reason}", file.display())))?;
+        let mesh = TriMesh::load(source).map_err(|e| {
+            let at = match e.line {
+                Some(line) => format!("{}:{line}", file.display()),
+                None => file.display().to_string(),
+            };
+            self.err(&spath.key("path"), format!("mesh file {at}: {}", e.reason))
+        })?;
         let (lo, hi) = mesh.bounds();
         for (corner, p) in [("lowest", lo), ("highest", hi)] {
             if let Some((i, c)) = p.iter().enumerate().find(|(_, c)| c.abs() > MAX_COORD_SPACINGS * d) {
