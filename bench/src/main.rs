@@ -399,6 +399,7 @@ fn bench(a: &Args) {
     let mut gpu_ms = [0.0f64; PASSES.len()];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut cg_iters = 0u64;
+    let mut visc_iters = 0u64;
     let mut step_s = Vec::new();
     let mut clean_s = Vec::new();
     let tick = 100.0; // USER_HZ on Linux
@@ -439,6 +440,7 @@ fn bench(a: &Args) {
             step_s.push(el);
             iters += st.iterations as u64;
             cg_iters += u64::from(st.cg_iterations);
+            visc_iters += u64::from(st.viscosity_iterations);
             min_dt = min_dt.min(st.dt);
             for (acc, v) in pass_ms.iter_mut().zip(st.times.ms) {
                 *acc += v;
@@ -517,6 +519,9 @@ fn bench(a: &Args) {
         print_soak("soak at the end", &soak(&sim));
     }
     println!("mean iterations      {:.2}", iters as f64 / m);
+    if sim.params.implicit_viscosity {
+        println!("implicit viscosity   {:.1} CG iterations per step", visc_iters as f64 / m);
+    }
     println!("pairs/particle       {:.1} fluid, {:.1} wall", ff as f64 / n as f64, fb as f64 / n as f64);
     println!("bytes/particle       {:.0}", sim.bytes_per_particle());
     let per = |b: usize| b as f64 / n as f64;

@@ -271,3 +271,133 @@ pub fn max_drift_speed(u: PhaseVel, n: usize) -> f32 {
         m
     })
 }
+
+/// Inputs of [`max_advective_speed`]: the fractions of P-Eq. 11 (outer:
+/// alpha, alpha_f) or P-Eq. 12 (inner: beta, beta_f) and what moves them.
+pub struct AdvectiveDrift<'a> {
+    pub frac: &'a [&'a [f32]],
+    pub frac_f: &'a [f32],
+    pub phases: &'a [PhaseConstants],
+    /// a^visc and a^p of this step (a = -(a^visc + a^p)), m/s^2.
+    pub a_visc: Vel<'a>,
+    pub a_p: Vel<'a>,
+    /// The porous term `scale` e_k, e_k per phase k at `[k n, (k + 1) n)`
+    /// of each component: P-Eq. 11's -phi grad p^pore_k, P-Eq. 12's
+    /// -tau' q_k ([`crate::porous::add_phase_term`]).
+    pub porous: Option<([&'a [f32]; 3], f32)>,
+}
+
+/// The largest advective drift speed max_k |u_mk - (its diffusion part)|
+/// with a shared phase pressure: u_mk^adv = t_k - sum_k' c_k' t_k', with
+/// t_k = tau_k rho_k a (+ the porous term) and c_k the mass fractions,
+/// over the phases present in the particle (alpha_k >= 0.01 alpha_f, the
+/// drift's guard); 0 where frac_f < 0.01, like the drift. m/s (NaN
+/// propagates).
+///
+/// The phases left out: an absent phase's u_mk moves nothing (its flux is
+/// alpha_k u_mk = 0), yet P-Eq. 11's porous term gives it the full
+/// -phi grad p^pore (Example 6: about 13 m/s where p^pore falls from 5e4 Pa
+/// to 0 across one spacing, dt 0.31 ms from the first step); a trace phase
+/// below 1 % of the particle is moved conservatively and kept >= 0 by the
+/// transport's outflow limiter.
+///
+/// Why the time step takes this and not max |u_mk| (issue 35): the
+/// diffusion part -sigma_k grad alpha_k / alpha_k of u_mk is a Fickian
+/// flux divided by the fraction it moves; it grows without bound as the
+/// fraction goes to 0 (a phase of beta = 1e-4 next to beta = 0.5, inside
+/// the inner guard's beta_k >= 0.01 beta_f at the beta_f = 0.01 cut:
+/// 2e-3 x 50 / 1e-4 = 1000 m/s), but the flux it moves, -sigma grad
+/// alpha_k, is bounded, its explicit step is stable under the diffusion
+/// number 0.1 h^2 / sigma that the rule already has, and the conservative
+/// transport's outflow limiter keeps every fraction >= 0. So the CFL
+/// number applies to the advective part only.
+pub fn max_advective_speed(inp: &AdvectiveDrift) -> f32 {
+    let n = inp.frac_f.len();
+    let (av, ap) = (inp.a_visc, inp.a_p);
+    crate::blocks::max_f32(n, |i| {
+        if inp.frac_f[i] < MIN_ALPHA_F {
+            return 0.0;
+        }
+        let a = [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i])];
+        let t = |k: usize| {
+            let c = &inp.phases[k];
+            let mut t = a.map(|a| c.tau * c.density * a);
+            if let Some((e, scale)) = inp.porous {
+                for (t, e) in t.iter_mut().zip(e) {
+                    *t += scale * e[k * n + i];
+                }
+            }
+            t
+        };
+        let (mut mass, mut s) = (0.0f32, [0.0f32; 3]);
+        for (k, frac) in inp.frac.iter().enumerate() {
+            let m = frac[i] * inp.phases[k].density;
+            let tk = t(k);
+            mass += m;
+            for c in 0..3 {
+                s[c] += m * tk[c];
+            }
+        }
+        if mass <= 0.0 {
+            return 0.0;
+        }
+        let mut largest = 0.0f32;
+        for k in 0..inp.frac.len() {
+            if inp.frac[k][i] < MIN_PHASE_FRACTION * inp.frac_f[i] {
+                // Absent or trace (the drift's own guard): it moves no
+                // volume worth a CFL bound; the outflow limiter keeps it >= 0.
+                continue;
+            }
+            let tk = t(k);
+            let u = [tk[0] - s[0] / mass, tk[1] - s[1] / mass, tk[2] - s[2] / mass];
+            let speed = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+            if speed.is_nan() || speed > largest {
+                largest = speed;
+            }
+        }
+        largest
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reference: P-Eq. 11 with a shared pressure and no diffusion, by
+    /// hand in f64: u_k = tau a (rho_k - sum_k' c_k' rho_k'), c the mass
+    /// fractions; the largest over the phases present (>= 1 % of the
+    /// particle; below, the trace phase's slip is left out).
+    #[test]
+    fn advective_speed_is_the_buoyancy_slip_of_the_phases_present() {
+        for trace in [0.5f32, 0.02, 1e-4, 1e-7] {
+            let alpha = [vec![1.0 - trace], vec![trace]];
+            let frac: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+            let rho = [1000.0f32, 1500.0];
+            let tau = 3e-6f32;
+            let phases: Vec<PhaseConstants> =
+                rho.iter().map(|&density| PhaseConstants { density, tau, sigma: 1e-3 }).collect();
+            let zero = [0.0f32];
+            let up = [9.81f32];
+            let inp = AdvectiveDrift {
+                frac: &frac,
+                frac_f: &[1.0],
+                phases: &phases,
+                a_visc: Vel { x: &zero, y: &zero, z: &zero },
+                a_p: Vel { x: &zero, y: &up, z: &zero },
+                porous: None,
+            };
+            let (a0, a1) = (f64::from(1.0 - trace), f64::from(trace));
+            let mean = (a0 * 1000.0 * 1000.0 + a1 * 1500.0 * 1500.0) / (a0 * 1000.0 + a1 * 1500.0);
+            let present = [a0 >= 0.01, a1 >= 0.01];
+            let expected = rho
+                .iter()
+                .zip(present)
+                .filter(|(_, p)| *p)
+                .map(|(&r, _)| 3e-6 * 9.81 * (f64::from(r) - mean).abs())
+                .fold(0.0, f64::max);
+            let got = f64::from(max_advective_speed(&inp));
+            // f32 against f64: 1e-5 of the slip scale tau g (rho_h - rho_l).
+            assert!((got - expected).abs() < 1e-5 * 3e-6 * 9.81 * 500.0, "trace {trace}: {got} vs {expected}");
+        }
+    }
+}

@@ -35,7 +35,9 @@ pub(super) struct NextFractions<'a> {
 /// they are (nothing drifts; they change only by absorption); with one
 /// phase and no porous solid nothing. Adds a^Dm to `ap`, which holds a^p
 /// (+ a^pore + a^cap) on entry, the drift's a = -(a^visc + ap). Returns
-/// the next fractions and the largest drift speed, m/s.
+/// the next fractions, the largest drift speed max_k |u_mk| and the
+/// largest advective drift speed (`drift::max_advective_speed`, the time
+/// step's), m/s.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn drift_and_transport<'a>(
     p: &Params,
@@ -49,7 +51,7 @@ pub(super) fn drift_and_transport<'a>(
     dt: f32,
     arena: &'a Bump,
     tm: &mut PassTimes,
-) -> (NextFractions<'a>, f32) {
+) -> (NextFractions<'a>, f32, f32) {
     let n = fluid.len();
     let np = fluid.alpha.len();
     let mixture = p.mixture() && n > 0;
@@ -66,7 +68,7 @@ pub(super) fn drift_and_transport<'a>(
             joined(alpha_next, &fluid.alpha[0], &fluid.alpha_lo[0]);
             joined(beta_next, &fluid.beta[0], &fluid.beta_lo[0]);
         }
-        return (NextFractions { alpha: alpha_next, beta: beta_next }, 0.0);
+        return (NextFractions { alpha: alpha_next, beta: beta_next }, 0.0, 0.0);
     }
     let [apx, apy, apz] = ap;
     let alpha: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
@@ -130,6 +132,38 @@ pub(super) fn drift_and_transport<'a>(
     });
     tm.gpu_ms[pass::DRIFT] = report.gpu_ms;
     let u_drift = phase_vel(arena, ux, uy, uz, n);
+    // The drift speed of the time step rule: the advective part (P-Eq. 11
+    // without its diffusion term; with phase pressures p_k = alphahat_k p
+    // all of u_mk, whose grad p_k part is a diffusion-like term too).
+    let cfl_speed = if p.fraction_pressure {
+        report.max_speed
+    } else {
+        tm.time(pass::DRIFT, || {
+            let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
+                density: p.phase_density[k],
+                tau: p.phase_drift_tau[k],
+                sigma: p.phase_drift_sigma[k],
+            }));
+            let a_p = Vel { x: &*apx, y: &*apy, z: &*apz };
+            let outer = drift::AdvectiveDrift {
+                frac: alpha,
+                frac_f: ph.alpha_f,
+                phases,
+                a_visc: pred.a_visc,
+                a_p,
+                porous: terms.map(|t| (t.grad_pore, -p.pore_drift)),
+            };
+            let inner = terms.map(|t| drift::AdvectiveDrift {
+                frac: beta,
+                frac_f: beta_f,
+                phases,
+                a_visc: pred.a_visc,
+                a_p,
+                porous: Some((t.q, -p.inner_drift_tau)),
+            });
+            drift::max_advective_speed(&outer).max(inner.map_or(0.0, |i| drift::max_advective_speed(&i)))
+        })
+    };
 
     // Pass 11: a^Dm, added to a^p.
     if p.drift_momentum_sign != 0.0 {
@@ -160,7 +194,7 @@ pub(super) fn drift_and_transport<'a>(
             tr.run(&w.ffb, beta, &fluid.beta_lo, phase_vel(arena, gx, gy, gz, n), beta_next);
         }
     });
-    (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed)
+    (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed, cfl_speed)
 }
 
 /// The volume-fraction transport of pass 12 for one set of fractions.

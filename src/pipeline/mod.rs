@@ -112,8 +112,13 @@ pub struct StepStats {
     pub solid_density_error: f32,
     /// Largest fluid speed after the step, m/s.
     pub max_speed: f32,
-    /// Largest drift speed max_k |u_mk| of the step, m/s (0 for one phase).
+    /// Largest drift speed max_k |u_mk| of the step, outer and inner, m/s
+    /// (0 for one phase).
     pub max_drift_speed: f32,
+    /// The drift speed of the time step rule: max_k |u_mk| without
+    /// P-Eq. 11's (12's) diffusion term
+    /// (`porosph_kernels::drift::max_advective_speed`), m/s.
+    pub cfl_drift_speed: f32,
     /// Largest Darcy speed max_k |u_rk| on the porous solids, m/s.
     pub max_darcy_speed: f32,
     /// Conjugate-gradient iterations of the implicit viscosity solve (0

@@ -64,7 +64,7 @@ impl Simulation {
         if !speed.is_finite() || speed > self.blowup_speed() {
             return Err(self.blowup(speed));
         }
-        self.dt = self.next_dt(speed, stats.max_drift_speed.max(stats.max_darcy_speed));
+        self.dt = self.next_dt(speed, stats.cfl_drift_speed.max(stats.max_darcy_speed));
         stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
         stats.max_speed = speed;
         stats.dt = dt;
@@ -90,8 +90,10 @@ impl Simulation {
     /// viscosity only: [`explicit_viscosity_bound`])), and with
     /// two or more phases also lambda h / max_k|u_mk| and
     /// 0.1 h^2 / max_k sigma_k; `max_drift` is the largest of the last
-    /// step's outer and inner drift speeds and Darcy speeds |u_rk| (the
-    /// step passes max(max_drift_speed, max_darcy_speed); PHYSICS.md writes
+    /// step's outer and inner advective drift speeds (u_mk without its
+    /// diffusion term, which the diffusion number bounds) and Darcy
+    /// speeds |u_rk| (the
+    /// step passes max(cfl_drift_speed, max_darcy_speed); PHYSICS.md writes
     /// 0.4 = lambda's default).
     pub fn next_dt(&self, max_speed: f32, max_drift: f32) -> f32 {
         self.dt_rule(max_speed, max_drift).0
@@ -296,9 +298,10 @@ fn step_passes(
     // Alg. 3: drift velocities, drift momentum and transport (P-Eqs. 2,
     // 6-7, 11-12), then the absorption exchange (P-Eq. 22).
     let ap = [&mut *apx, &mut *apy, &mut *apz];
-    let (next, max_drift) =
+    let (next, max_drift, cfl_drift) =
         mixture::drift_and_transport(p, fluid, w, &ph, vols.vol, &pred, terms.as_ref(), ap, dt, arena, tm);
     st.max_drift_speed = max_drift;
+    st.cfl_drift_speed = cfl_drift;
     if let Some(t) = &terms {
         porous::exchange(t, fluid.len(), &mut *next.alpha, &mut *next.beta, dt, tm);
         let ap = [&mut *apx, &mut *apy, &mut *apz];

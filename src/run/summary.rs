@@ -81,7 +81,7 @@ impl Tally {
         }
         // The rule as the step applied it for the next dt; a dt it does not
         // reproduce bit for bit is counted as set before the run.
-        let (dt, by) = sim.dt_rule(st.max_speed, st.max_drift_speed.max(st.max_darcy_speed));
+        let (dt, by) = sim.dt_rule(st.max_speed, st.cfl_drift_speed.max(st.max_darcy_speed));
         self.next = (dt.to_bits() == sim.dt.to_bits()).then_some(by);
     }
 
