@@ -60,26 +60,35 @@ impl PairWeight for PhaseWeights<'_> {
     }
 }
 
+/// The pair coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /
+/// (|x_ij|^2 + 0.01 h^2) of P-Eq. 23's Morris form for the pairs
+/// `k..k + LANES` of particle `i` in `blk` (>= 0, symmetric; 0 for the
+/// padding).
+#[inline(always)]
+fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, k: usize, i: usize, wt: &W) -> F {
+    let eps = 0.01 * inp.h * inp.h;
+    let (x, j) = (inp.x, &blk.j);
+    let dx = F::splat(x.x[i]) - gather(x.x, j, k);
+    let dy = F::splat(x.y[i]) - gather(x.y, j, k);
+    let dz = F::splat(x.z[i]) - gather(x.z, j, k);
+    let r2 = dx * dx + dy * dy + dz * dz;
+    // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
+    let xg = -(dx * load(&blk.gx, k) + dy * load(&blk.gy, k) + dz * load(&blk.gz, k));
+    wt.apply((F::splat(inp.mu[i]) + gather(inp.mu, j, k)) * xg / (r2 + F::splat(eps)), i, j, k)
+}
+
 /// a^visc_i (P-Eq. 23) of particle `i`, the query `q` of block `blk`.
 #[inline(always)]
 fn viscous_acceleration<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, q: usize, i: usize, wt: &W) -> [f32; 3] {
-    let eps = 0.01 * inp.h * inp.h;
-    let (u, x) = (inp.u, inp.x);
+    let u = inp.u;
     let (mut ax, mut ay, mut az) = (F::ZERO, F::ZERO, F::ZERO);
-    let (xi, yi, zi) = (F::splat(x.x[i]), F::splat(x.y[i]), F::splat(x.z[i]));
     let (uxi, uyi, uzi) = (F::splat(u.x[i]), F::splat(u.y[i]), F::splat(u.z[i]));
-    let (mui, rhoi) = (F::splat(inp.mu[i]), inp.rest_density[i]);
+    let rhoi = inp.rest_density[i];
     let r = blk.range(q);
-    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    let j = &blk.j;
     let mut k = r.start;
     while k < r.end {
-        let dx = xi - gather(x.x, j, k);
-        let dy = yi - gather(x.y, j, k);
-        let dz = zi - gather(x.z, j, k);
-        let r2 = dx * dx + dy * dy + dz * dz;
-        // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
-        let xg = -(dx * load(gx, k) + dy * load(gy, k) + dz * load(gz, k));
-        let c = wt.apply((mui + gather(inp.mu, j, k)) * xg / (r2 + F::splat(eps)), i, j, k);
+        let c = pair_coefficients(inp, blk, k, i, wt);
         ax += c * (gather(u.x, j, k) - uxi);
         ay += c * (gather(u.y, j, k) - uyi);
         az += c * (gather(u.z, j, k) - uzi);
@@ -163,14 +172,10 @@ pub struct ImplicitScratch<'a> {
     pub parts: &'a mut [f64],
 }
 
-/// The coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /
-/// (|x_ij|^2 + 0.01 h^2) of P-Eq. 23's Morris form, one per pair (the
-/// padding's are 0), in `coef` (one vector per block of `ff`, kept for its
-/// capacity); they are symmetric, k_ij = k_ji. Writes D_i = rho_i +
-/// dt h^3 sum_j k_ij.
+/// The coefficients k_ij of [`pair_coefficients`], one per pair, in `coef`
+/// (one vector per block of `ff`, kept for its capacity). Writes
+/// D_i = rho_i + dt h^3 sum_j k_ij.
 fn implicit_coefficients<W: PairWeight>(inp: &ViscosityInput, wt: &W, coef: &mut [Vec<f32>], diag: &mut [f32]) {
-    let eps = 0.01 * inp.h * inp.h;
-    let x = inp.x;
     let scale = inp.dt * inp.h * inp.h * inp.h;
     coef.par_iter_mut().zip(diag.par_chunks_mut(BLOCK)).zip(inp.ff.used().par_iter()).enumerate().for_each(
         |(b, ((c, dg), blk))| {
@@ -178,19 +183,11 @@ fn implicit_coefficients<W: PairWeight>(inp: &ViscosityInput, wt: &W, coef: &mut
             c.resize(blk.len(), 0.0);
             for (q, dg) in dg.iter_mut().enumerate() {
                 let i = b * BLOCK + q;
-                let (xi, yi, zi) = (F::splat(x.x[i]), F::splat(x.y[i]), F::splat(x.z[i]));
-                let mui = F::splat(inp.mu[i]);
                 let r = blk.range(q);
-                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
                 let mut total = F::ZERO;
                 let mut k = r.start;
                 while k < r.end {
-                    let dx = xi - gather(x.x, j, k);
-                    let dy = yi - gather(x.y, j, k);
-                    let dz = zi - gather(x.z, j, k);
-                    let r2 = dx * dx + dy * dy + dz * dz;
-                    let xg = -(dx * load(gx, k) + dy * load(gy, k) + dz * load(gz, k));
-                    let kij = wt.apply((mui + gather(inp.mu, j, k)) * xg / (r2 + F::splat(eps)), i, j, k);
+                    let kij = pair_coefficients(inp, blk, k, i, wt);
                     store(c, k, kij);
                     total += kij;
                     k += LANES;
@@ -237,7 +234,7 @@ fn implicit_apply(inp: &ViscosityInput, coef: &[Vec<f32>], v: [&[f32]; 3], out: 
 /// P-Eq. 23 implicit (backward Euler): u*_i = u_i + dt (g + a^visc_i(u*)),
 /// i.e. with masses m_i = rho_i h^3, the symmetric positive definite system
 ///   rho_i u*_i + dt h^3 sum_j k_ij (u*_i - u*_j) = rho_i (u_i + dt g)
-/// (k_ij of [`implicit_coefficients`], >= 0 and symmetric: the viscous
+/// (k_ij of [`pair_coefficients`], >= 0 and symmetric: the viscous
 /// forces are pairwise equal and opposite, so linear momentum is conserved,
 /// and the step is stable for any dt). Solved for the three components at
 /// once by conjugate gradients with the Jacobi preconditioner, from
