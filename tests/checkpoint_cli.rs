@@ -5,23 +5,9 @@
 
 mod common;
 
-use common::{TempDir, TWO_PHASE};
+use common::{porosph, s, text, TempDir, TWO_PHASE};
 use porosph::io::checkpoint::read_checkpoint;
 use std::fs;
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn porosph(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_porosph")).args(args).output().expect("run porosph")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// The two-phase scene as a file in `dir`.
 fn scene_file(dir: &TempDir) -> std::path::PathBuf {

@@ -6,22 +6,9 @@
 
 mod common;
 
-use common::{TempDir, TWO_PHASE};
+use common::{porosph, s, text, TempDir, TWO_PHASE};
 use std::fs;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn porosph(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_porosph")).args(args).output().expect("run porosph")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// Runs `args`, which must fail with exit status `code` and `message` in stderr.
 fn fails(args: &[&str], code: i32, message: &str) {

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{assert_same_bits, solid_bits, store_bits, TempDir, TWO_PHASE};
+use common::{assert_same_bits, s, solid_bits, store_bits, TempDir, TWO_PHASE};
 use porosph::io::checkpoint::read_checkpoint;
 use porosph::run::newest_checkpoint;
 use std::fs;
@@ -18,10 +18,6 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_porosph");
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// Steps of the runs (about 6 ms each): long enough to be interrupted.
 const STEPS: u64 = 300;

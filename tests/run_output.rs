@@ -7,22 +7,9 @@
 
 mod common;
 
-use common::{TempDir, TWO_PHASE};
+use common::{porosph, s, text, TempDir, TWO_PHASE};
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn porosph(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_porosph")).args(args).output().expect("run porosph")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 fn scene_file(dir: &TempDir) -> PathBuf {
     let p = dir.path("two_phase.toml");

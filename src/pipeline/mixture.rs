@@ -82,16 +82,16 @@ pub(super) fn drift_and_transport<'a>(
     } else {
         (&[], &[])
     };
+    let phases: &[PhaseConstants] = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
+        density: p.phase_density[k],
+        tau: p.phase_drift_tau[k],
+        sigma: p.phase_drift_sigma[k],
+    }));
     let report = tm.time(pass::DRIFT, || {
         let pf = zeros(if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
         }
-        let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
-            density: p.phase_density[k],
-            tau: p.phase_drift_tau[k],
-            sigma: p.phase_drift_sigma[k],
-        }));
         let prob = DriftProblem {
             input: DriftInput {
                 support: p.kernel.support,
@@ -139,11 +139,6 @@ pub(super) fn drift_and_transport<'a>(
         report.max_speed
     } else {
         tm.time(pass::DRIFT, || {
-            let phases = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
-                density: p.phase_density[k],
-                tau: p.phase_drift_tau[k],
-                sigma: p.phase_drift_sigma[k],
-            }));
             let a_p = Vel { x: &*apx, y: &*apy, z: &*apz };
             let outer = drift::AdvectiveDrift {
                 frac: alpha,

@@ -15,6 +15,7 @@ use porosph_kernels::neighbors::{PairLists, Points};
 use porosph_kernels::viscosity::{
     predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
 };
+use rayon::prelude::*;
 
 /// What pass 3 gives the later passes.
 pub(super) struct Prediction<'a> {
@@ -76,9 +77,7 @@ pub(super) fn predict<'a>(
                 let (u, g) = ([&fluid.ux, &fluid.uy, &fluid.uz], p.gravity);
                 for (c, (a, us)) in [&mut *avx, &mut *avy, &mut *avz].into_iter().zip([&*usx, &*usy, &*usz]).enumerate()
                 {
-                    for (i, a) in a.iter_mut().enumerate() {
-                        *a = (us[i] - u[c][i]) / dt - g[c];
-                    }
+                    a.par_iter_mut().enumerate().for_each(|(i, a)| *a = (us[i] - u[c][i]) / dt - g[c]);
                 }
             }
         } else if mixture {

@@ -5,6 +5,21 @@ use porosph::pipeline::Simulation;
 use porosph::scene::Scene;
 use std::path::PathBuf;
 
+/// Runs the `porosph` binary with `args`.
+pub fn porosph(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_porosph")).args(args).output().expect("run porosph")
+}
+
+/// Bytes (a process's output) as text.
+pub fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// A path as a command-line argument.
+pub fn s(p: &std::path::Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
 /// A scene from `scenes/` in the repository.
 pub fn scene_file(name: &str) -> Scene {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
