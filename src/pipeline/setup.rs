@@ -314,7 +314,8 @@ impl Simulation {
             arena: Bump::new(),
         };
         let v0 = sim.max_speed();
-        sim.dt = sim.next_dt(v0, sim.params.drift_speed_estimate());
+        let (dt, by) = sim.dt_rule(v0, sim.params.drift_speed_estimate());
+        (sim.dt, sim.last.next_dt_limit) = (dt, Some(by));
         sim
     }
 }

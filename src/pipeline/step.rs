@@ -64,7 +64,8 @@ impl Simulation {
         if !speed.is_finite() || speed > self.blowup_speed() {
             return Err(self.blowup(speed));
         }
-        self.dt = self.next_dt(speed, stats.cfl_drift_speed.max(stats.max_darcy_speed));
+        let (dt_next, by) = self.dt_rule(speed, stats.cfl_drift_speed.max(stats.max_darcy_speed));
+        (self.dt, stats.next_dt_limit) = (dt_next, Some(by));
         stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
         stats.max_speed = speed;
         stats.dt = dt;

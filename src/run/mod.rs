@@ -324,7 +324,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             }
         };
         let ms_step = t.elapsed().as_secs_f64() * 1e3;
-        tally.step(sim, &st);
+        tally.step(&st);
         let mut row = vec![
             sim.step as f64,
             sim.time,

@@ -60,16 +60,12 @@ impl Tally {
                 ..RunSummary::default()
             },
             masses: sim.phase_masses(),
-            // A new run's first dt is the rule's at the initial speeds and
-            // the drift speed estimate (`Simulation::new`).
-            next: (sim.step == 0)
-                .then(|| sim.dt_rule(sim.max_speed(), sim.params.drift_speed_estimate()))
-                .and_then(|(dt, by)| (dt.to_bits() == sim.dt.to_bits()).then_some(by)),
+            next: sim.last.next_dt_limit,
         }
     }
 
-    /// Counts the step `sim` just took, whose stats are `st`.
-    pub fn step(&mut self, sim: &Simulation, st: &StepStats) {
+    /// Counts a step just taken, whose stats are `st`.
+    pub fn step(&mut self, st: &StepStats) {
         let s = &mut self.summary;
         s.steps += 1;
         s.dt_sum += f64::from(st.dt);
@@ -79,10 +75,7 @@ impl Tally {
             Some(l) => s.dt_held[l as usize] += 1,
             None => s.dt_held_before += 1,
         }
-        // The rule as the step applied it for the next dt; a dt it does not
-        // reproduce bit for bit is counted as set before the run.
-        let (dt, by) = sim.dt_rule(st.max_speed, st.cfl_drift_speed.max(st.max_darcy_speed));
-        self.next = (dt.to_bits() == sim.dt.to_bits()).then_some(by);
+        self.next = st.next_dt_limit;
     }
 
     pub fn checkpoint(&mut self) {
