@@ -25,8 +25,8 @@
 //!   belongs to a particle whose volume changes, but IISPH holds every
 //!   particle's volume at alpha_f h^3 (div u_m = 0 up to the solver
 //!   tolerance), and with sum_k F_k = 0 the correction's renormalisation
-//!   would remove it again anyway; (3) a positivity limiter
-//!   ([`outflow_limit`], [`pair_limit`]) scales each pair flux, by the same
+//!   would remove it again anyway; (3) a positivity limiter (the outflow
+//!   and pair limits of [`transport`]) scales each pair flux, by the same
 //!   factor for all phases, so that no particle loses more of a phase than
 //!   it holds. Each pair flux is then antisymmetric and adds up to 0 over
 //!   the phases, so every phase's volume is conserved and sum_k alpha_k
@@ -39,115 +39,198 @@
 
 use crate::blocks::BLOCK;
 use crate::iisph::Vel;
-use crate::lanes::{gather, load, store, sum, F, LANES};
-use crate::neighbors::PairLists;
-use crate::phases::{join, split};
+use crate::lanes::{gather, load, sum, F, LANES};
+use crate::neighbors::{PairBlock, PairLists};
+use crate::phases::{join, split, PhaseVel};
 use rayon::prelude::*;
 use wide::Select;
 
-/// Pass 12, conservative transport, step 1 for phase k: the pair fluxes
-/// phi_k,ij = (F_k,i + F_k,j) . Vbar_ij grad W_ij, stored per pair in
-/// `pair_flux` (`pair_flux[b]` for block b of `ff`, in its pair order), and
-/// the outflow limit lambda_k,i = min(1, alpha_k,i / (dt O_k,i)), where
-/// O_k,i = sum_j max(phi_k,ij, 0) is the rate at which phase k leaves
-/// particle i (1 where nothing leaves). `flux` is F_k.
-pub fn outflow_limit(ff: &PairLists, alpha_k: &[f32], flux: Vel, dt: f32, out: &mut [f32], pair_flux: &mut [Vec<f32>]) {
-    out.par_chunks_mut(BLOCK).zip(ff.used().par_iter().zip(pair_flux.par_iter_mut())).enumerate().for_each(
-        |(b, (o, (blk, phi_out)))| {
-            phi_out.clear();
-            phi_out.resize(blk.len(), 0.0);
-            for (q, o) in o.iter_mut().enumerate() {
-                let i = b * BLOCK + q;
-                let (fxi, fyi, fzi) = (F::splat(flux.x[i]), F::splat(flux.y[i]), F::splat(flux.z[i]));
-                let mut acc = F::ZERO;
-                let r = blk.range(q);
-                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-                let mut p = r.start;
-                while p < r.end {
-                    let phi = (gather(flux.x, j, p) + fxi) * load(gx, p)
-                        + (gather(flux.y, j, p) + fyi) * load(gy, p)
-                        + (gather(flux.z, j, p) + fzi) * load(gz, p);
-                    store(phi_out, p, phi);
-                    acc += phi.max(F::ZERO);
-                    p += LANES;
-                }
-                let leaving = dt * sum(acc);
-                *o = if leaving > alpha_k[i] { alpha_k[i].max(0.0) / leaving } else { 1.0 };
-            }
-        },
-    );
+/// Phases handled together in one pass over the pairs; more are done in
+/// groups of this many.
+const GROUP: usize = 8;
+
+/// Per-step scratch of [`transport`] (from the step's arena), `np` the
+/// number of phases, `n` of particles.
+pub struct TransportScratch<'a> {
+    /// Outflow limits lambda_k,i, particle-major (`i np + k`).
+    pub limit: &'a mut [f32],
+    /// Unlimited net outflow sum_j phi_k,ij, particle-major.
+    pub net: &'a mut [f32],
+    /// min_k lambda_k,i, per particle.
+    pub least: &'a mut [f32],
+    /// The new fractions, particle-major, before they go to `out`.
+    pub next: &'a mut [f64],
 }
 
-/// Pass 12, conservative transport, step 2: the limit of every pair,
-/// Lambda_ij = min over phases k of the outflow limit of the particle that
-/// phase k leaves in that pair (lambda_k,i if phi_k,ij > 0, lambda_k,j if
-/// phi_k,ij < 0). It is the same for all phases and for (i, j) and (j, i),
-/// so the limited pair fluxes stay antisymmetric and add up to 0 over the
-/// phases, and no particle loses more of a phase than it holds (a particle
-/// without phase k still receives it: there k leaves the other particle).
-/// `pair_flux[k]` and `limit[k]` are the phi_k and lambda_k of
-/// [`outflow_limit`]; `out[b]` gets the limits of block b's pairs.
-pub fn pair_limit(ff: &PairLists, pair_flux: &[&[Vec<f32>]], limit: &[&[f32]], out: &mut [Vec<f32>]) {
-    out.par_iter_mut().zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
-        o.clear();
-        o.resize(blk.len(), 1.0);
-        let nq = blk.start.len().saturating_sub(1);
-        for q in 0..nq {
+/// Pass 12, the conservative transport of every phase (the default; see
+/// the module doc), in one pass over the pairs for all phases:
+///
+/// dalpha_k,i/dt = -sum_j Lambda_ij phi_k,ij,  phi_k,ij = (F_k,i + F_k,j) . Vbar_ij grad W_ij,
+///
+/// then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt in f64 from the stored
+/// fraction `alpha[k]` + `lo[k]` (`phases::join`), into `out` (phase k at
+/// `[k n, (k + 1) n)`). F_k = alpha_k (u_mk - j) is the volume-weighted
+/// phase flux of `drift::drift_velocity`.
+///
+/// The positivity limiter: lambda_k,i = min(1, alpha_k,i / (dt O_k,i)),
+/// O_k,i = sum_j max(phi_k,ij, 0) the rate at which phase k leaves i (1
+/// where nothing leaves); the pair limit Lambda_ij = min over phases k of
+/// the outflow limit of the particle that phase k leaves in that pair
+/// (lambda_k,i if phi_k,ij > 0, lambda_k,j if phi_k,ij < 0). It is the same
+/// for all phases and for (i, j) and (j, i), so the limited pair fluxes
+/// stay antisymmetric and add up to 0 over the phases, and no particle
+/// loses more of a phase than it holds (a particle without phase k still
+/// receives it: there k leaves the other particle).
+///
+/// Where neither i nor any neighbour is limited (every lambda 1), every
+/// Lambda_ij is 1 and the sum is the unlimited net outflow of the first
+/// pass; only particles next to a limited one go over their pairs again
+/// with the pair limits. The pair fluxes are not stored: the arithmetic is
+/// that of storing them (same expressions, same order), so the result is
+/// bit for bit that of the three-pass form (fluxes, pair limits, sums) that
+/// `kernels/tests/mixture.rs` keeps as its reference.
+pub fn transport(
+    ff: &PairLists,
+    alpha: &[&[f32]],
+    lo: &[&[f32]],
+    flux: PhaseVel,
+    dt: f32,
+    scratch: TransportScratch,
+    out: &mut [f64],
+) {
+    let np = alpha.len();
+    let n = out.len() / np.max(1);
+    if np == 0 || n == 0 {
+        return;
+    }
+    let TransportScratch { limit, net, least, next } = scratch;
+    outflow(ff, alpha, flux, dt, limit, net, least);
+    let any_limited = least.par_iter().any(|&l| l < 1.0);
+    next.par_chunks_mut(BLOCK * np).zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
+        for q in 0..o.len() / np {
             let i = b * BLOCK + q;
             let r = blk.range(q);
-            let j = &blk.j[..r.end];
-            let mut p = r.start;
-            while p < r.end {
-                let mut lam = F::splat(1.0);
-                for (phi, l) in pair_flux.iter().zip(limit) {
-                    let phi = load(&phi[b], p);
-                    // phi > 0: phase k leaves i; phi < 0: it leaves j; 0: no limit.
-                    let from_j = Select::select(phi.simd_lt(F::ZERO), gather(l, j, p), F::splat(1.0));
-                    lam = lam.min(Select::select(phi.simd_gt(F::ZERO), F::splat(l[i]), from_j));
+            let near_limit = any_limited
+                && (least[i] < 1.0 || {
+                    let j = &blk.j[..r.end];
+                    let mut p = r.start;
+                    let mut hit = false;
+                    while p < r.end && !hit {
+                        hit = gather(least, j, p).simd_lt(F::splat(1.0)).any();
+                        p += LANES;
+                    }
+                    hit
+                });
+            let o = &mut o[q * np..(q + 1) * np];
+            if near_limit {
+                limited_sums(blk, q, i, flux, limit, np, o);
+            } else {
+                for (k, o) in o.iter_mut().enumerate() {
+                    *o = f64::from(net[i * np + k]);
                 }
-                store(o, p, lam);
-                p += LANES;
+            }
+            for (k, o) in o.iter_mut().enumerate() {
+                *o = join(alpha[k][i], lo[k][i]) - f64::from(dt) * *o;
             }
         }
     });
+    for (k, out) in out.chunks_mut(n).enumerate() {
+        out.par_iter_mut().enumerate().for_each(|(i, o)| *o = next[i * np + k]);
+    }
 }
 
-/// Pass 12, conservative transport, step 3 for phase k (the default; see the
-/// module doc): the drift part of P-Eq. 2 in the symmetric form,
-///
-/// dalpha_k,i/dt = -sum_j Lambda_ij (F_k,i + F_k,j) . Vbar_ij grad W_ij,
-///
-/// over fluid neighbours, then alpha_k^{n+1} = alpha_k + dt dalpha_k/dt,
-/// in f64 from the stored fraction `alpha_k` + `alpha_lo`
-/// (`phases::join`). F_k = alpha_k (u_mk - j) is the volume-weighted phase
-/// flux of `drift::drift_velocity`; `pair_flux` holds the pair fluxes
-/// phi_k,ij of [`outflow_limit`] and `pair_limit` the Lambda_ij of
-/// [`pair_limit`].
-pub fn transport(
+/// The first pass of [`transport`]: per particle and phase, the outflow
+/// limit lambda_k,i and the unlimited net outflow sum_j phi_k,ij; and the
+/// least limit of each particle.
+fn outflow(
     ff: &PairLists,
-    alpha_k: &[f32],
-    alpha_lo: &[f32],
-    pair_flux: &[Vec<f32>],
-    pair_limit: &[Vec<f32>],
+    alpha: &[&[f32]],
+    flux: PhaseVel,
     dt: f32,
-    out: &mut [f64],
+    limit: &mut [f32],
+    net: &mut [f32],
+    least: &mut [f32],
 ) {
-    out.par_chunks_mut(BLOCK)
-        .zip(ff.used().par_iter().zip(pair_flux.par_iter().zip(pair_limit.par_iter())))
+    let np = alpha.len();
+    limit
+        .par_chunks_mut(BLOCK * np)
+        .zip(net.par_chunks_mut(BLOCK * np))
+        .zip(least.par_chunks_mut(BLOCK))
+        .zip(ff.used().par_iter())
         .enumerate()
-        .for_each(|(b, (o, (blk, (phi, lim))))| {
-            for (q, o) in o.iter_mut().enumerate() {
+        .for_each(|(b, (((l, s), m), blk))| {
+            for (q, m) in m.iter_mut().enumerate() {
                 let i = b * BLOCK + q;
-                let mut acc = F::ZERO;
                 let r = blk.range(q);
-                let mut p = r.start;
-                while p < r.end {
-                    acc += load(phi, p) * load(lim, p);
-                    p += LANES;
+                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+                for k0 in (0..np).step_by(GROUP) {
+                    let g = (np - k0).min(GROUP);
+                    let fi: [[F; 3]; GROUP] = std::array::from_fn(|k| {
+                        if k < g {
+                            [F::splat(flux.x[k0 + k][i]), F::splat(flux.y[k0 + k][i]), F::splat(flux.z[k0 + k][i])]
+                        } else {
+                            [F::ZERO; 3]
+                        }
+                    });
+                    let (mut leave, mut sum_phi) = ([F::ZERO; GROUP], [F::ZERO; GROUP]);
+                    let mut p = r.start;
+                    while p < r.end {
+                        let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
+                        for k in 0..g {
+                            let phi = (gather(flux.x[k0 + k], j, p) + fi[k][0]) * wx
+                                + (gather(flux.y[k0 + k], j, p) + fi[k][1]) * wy
+                                + (gather(flux.z[k0 + k], j, p) + fi[k][2]) * wz;
+                            leave[k] += phi.max(F::ZERO);
+                            sum_phi[k] += phi;
+                        }
+                        p += LANES;
+                    }
+                    for k in 0..g {
+                        let a = alpha[k0 + k][i];
+                        let leaving = dt * sum(leave[k]);
+                        l[q * np + k0 + k] = if leaving > a { a.max(0.0) / leaving } else { 1.0 };
+                        s[q * np + k0 + k] = sum(sum_phi[k]);
+                    }
                 }
-                *o = join(alpha_k[i], alpha_lo[i]) - f64::from(dt) * f64::from(sum(acc));
+                *m = l[q * np..(q + 1) * np].iter().fold(1.0f32, |m, &x| m.min(x));
             }
         });
+}
+
+/// sum_j Lambda_ij phi_k,ij of particle i (query q of `blk`) for every
+/// phase, into `o`: the fluxes again, with the pair limits.
+fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f32], np: usize, o: &mut [f64]) {
+    let r = blk.range(q);
+    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    for k0 in (0..np).step_by(GROUP) {
+        let g = (np - k0).min(GROUP);
+        let mut acc = [F::ZERO; GROUP];
+        let mut p = r.start;
+        while p < r.end {
+            let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
+            // Lambda_ij over all phases (not only this group's).
+            let mut lam = F::splat(1.0);
+            let mut phis = [F::ZERO; GROUP];
+            for k in 0..np {
+                let phi = (gather(flux.x[k], j, p) + F::splat(flux.x[k][i])) * wx
+                    + (gather(flux.y[k], j, p) + F::splat(flux.y[k][i])) * wy
+                    + (gather(flux.z[k], j, p) + F::splat(flux.z[k][i])) * wz;
+                let lj = F::from(std::array::from_fn::<f32, LANES, _>(|l| limit[j[p + l] as usize * np + k]));
+                let from_j = Select::select(phi.simd_lt(F::ZERO), lj, F::splat(1.0));
+                lam = lam.min(Select::select(phi.simd_gt(F::ZERO), F::splat(limit[i * np + k]), from_j));
+                if (k0..k0 + g).contains(&k) {
+                    phis[k - k0] = phi;
+                }
+            }
+            for k in 0..g {
+                acc[k] += phis[k] * lam;
+            }
+            p += LANES;
+        }
+        for k in 0..g {
+            o[k0 + k] = f64::from(sum(acc[k]));
+        }
+    }
 }
 
 /// Pass 12 for one phase k, the reference form: P-Eq. 2 in the symmetric

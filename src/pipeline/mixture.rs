@@ -19,7 +19,7 @@ use porosph_kernels::drift;
 use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
 use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::neighbors::{PairLists, Points};
-use porosph_kernels::phase_transport;
+use porosph_kernels::phase_transport::{self, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
 use rayon::prelude::*;
 
@@ -182,8 +182,7 @@ pub(super) fn drift_and_transport<'a>(
     // Pass 12: transport of every phase at the old positions (P-Eq. 2).
     tm.time(pass::PHASE_TRANSPORT, || {
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
-        let (pair_limit, pair_flux) = (&mut w.pair_limit, &mut w.pair_flux);
-        let mut tr = Transport { p, arena, n, dt, u, pair_limit, pair_flux };
+        let tr = Transport { p, arena, n, dt, u };
         tr.run(&w.ff, alpha, &fluid.alpha_lo, phase_vel(arena, fx, fy, fz, n), alpha_next);
         if porous {
             tr.run(&w.ffb, beta, &fluid.beta_lo, phase_vel(arena, gx, gy, gz, n), beta_next);
@@ -193,43 +192,29 @@ pub(super) fn drift_and_transport<'a>(
 }
 
 /// The volume-fraction transport of pass 12 for one set of fractions.
-struct Transport<'a, 'b> {
+struct Transport<'a> {
     p: &'a Params,
     arena: &'a Bump,
     n: usize,
     dt: f32,
     u: Vel<'a>,
-    /// Per block of pairs: the pair limit of the conservative transport.
-    pair_limit: &'b mut Vec<Vec<f32>>,
-    /// Per phase, per block of pairs: the conservative pair fluxes.
-    pair_flux: &'b mut Vec<Vec<Vec<f32>>>,
 }
 
-impl Transport<'_, '_> {
+impl Transport<'_> {
     /// Moves the fractions `frac` + `lo` (per phase) by the fluxes `flux`
     /// over the pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
-    fn run(&mut self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
+    fn run(&self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
         let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
         if self.p.conservative_transport {
-            let nb = ff.used().len();
-            let (pair_limit, pair_flux) = (&mut *self.pair_limit, &mut *self.pair_flux);
-            pair_flux.resize_with(np, Vec::new);
-            for f in pair_flux.iter_mut() {
-                f.resize_with(nb.max(f.len()), Vec::new);
-            }
-            if pair_limit.len() < nb {
-                pair_limit.resize_with(nb, Vec::new);
-            }
-            let limit = arena.alloc_slice_fill_copy(np * n, 0.0f32);
-            for (k, (l, phi)) in limit.chunks_mut(n).zip(pair_flux.iter_mut()).enumerate() {
-                phase_transport::outflow_limit(ff, frac[k], flux.phase(k), dt, l, &mut phi[..nb]);
-            }
-            let limit = arena.alloc_slice_fill_iter(limit.chunks(n));
-            let phi = arena.alloc_slice_fill_iter(pair_flux.iter().map(|f| &f[..nb]));
-            phase_transport::pair_limit(ff, phi, limit, &mut pair_limit[..nb]);
-            for (k, out) in next.chunks_mut(n).enumerate() {
-                phase_transport::transport(ff, frac[k], &lo[k], phi[k], &pair_limit[..nb], dt, out);
-            }
+            let zeros = |len: usize| arena.alloc_slice_fill_copy(len, 0.0f32);
+            let scratch = TransportScratch {
+                limit: zeros(np * n),
+                net: zeros(np * n),
+                least: zeros(n),
+                next: arena.alloc_slice_fill_copy(np * n, 0.0f64),
+            };
+            let lo = arena.alloc_slice_fill_iter(lo.iter().map(|l| l.as_slice()));
+            phase_transport::transport(ff, frac, lo, flux, dt, scratch, next);
         } else {
             for (k, out) in next.chunks_mut(n).enumerate() {
                 phase_transport::transport_reference(ff, self.u, frac[k], &lo[k], flux.phase(k), dt, out);

@@ -164,12 +164,6 @@ struct Workspace {
     /// Per block of fluid-fluid pairs: the implicit viscosity's pair
     /// coefficients (kept for its capacity).
     visc_coef: Vec<Vec<f32>>,
-    /// Per block of fluid-fluid pairs: the pair limit of the conservative
-    /// volume-fraction transport (kept for its capacity).
-    pair_limit: Vec<Vec<f32>>,
-    /// Per phase, per block of fluid-fluid pairs: the pair fluxes of the
-    /// conservative transport (kept for its capacity).
-    pair_flux: Vec<Vec<Vec<f32>>>,
     /// Solid Morton keys (sorted after the sort).
     solid_keys: Vec<u64>,
     solid_sort: Vec<(u64, u32)>,
@@ -240,11 +234,6 @@ impl Simulation {
             ("pairs fs, sf, ss, sb, bs", w.fs.bytes() + w.sf.bytes() + w.ss.bytes() + w.sb.bytes() + w.bs.bytes()),
             ("solid rest rows", 4 * (w.solid_own.capacity() + w.solid_v0.capacity())),
             ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
-            (
-                "mixture pair limits, fluxes",
-                4 * w.pair_limit.iter().map(|v| v.capacity()).sum::<usize>()
-                    + 4 * w.pair_flux.iter().flatten().map(|v| v.capacity()).sum::<usize>(),
-            ),
             ("step arena", self.arena.allocated_bytes()),
         ]
     }
