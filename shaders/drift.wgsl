@@ -30,11 +30,8 @@ struct DriftParams {
     fraction_pressure: u32,
     // 1: F_k = w_k - alpha_k m (conservative transport); 0: F_k = alpha_k u_mk.
     conservative: u32,
-    // Kernel support H, m; 1/H; 8/(pi H^3); 48/(pi H^4).
-    support: f32,
-    inv_support: f32,
-    kernel_k: f32,
-    kernel_l: f32,
+    // The scene's kernel (common_kernel.wgsl).
+    kernel: KernelParams,
     // 1: add extra_scale e_k to v_k and alpha_k extra_scale e_k to w_k
     // (kernels/src/porous.rs add_phase_term); 0: no extra term.
     extra_term: u32,

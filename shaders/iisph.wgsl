@@ -16,19 +16,16 @@
 // same device.
 //
 // Prepended: common_grid.wgsl (WG, RANGES, linear_index) and
-// common_kernel.wgsl (grad_over_r, harmonic_volumes, pair_gradient; they
-// read P.support, P.inv_support, P.kernel_l).
+// common_kernel.wgsl (KernelParams, grad_over_r, harmonic_volumes,
+// pair_gradient; they read P.kernel).
 
 struct IisphParams {
     n_fluid: u32,
     n_active: u32,
     min_iterations: u32,
     max_iterations: u32,
-    // Kernel support H, m; 1/H; 8/(pi H^3); 48/(pi H^4) (kernels/src/kernel.rs).
-    support: f32,
-    inv_support: f32,
-    kernel_k: f32,
-    kernel_l: f32,
+    // The scene's kernel (common_kernel.wgsl).
+    kernel: KernelParams,
     // Time step, s; Jacobi relaxation; target mean density error; number of
     // fluid rows in the solve (diag != 0), as f32.
     dt: f32,

@@ -13,7 +13,6 @@ use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
 use porosph::run::output::{self, Claim};
 use porosph::run::{interrupt, run, CheckpointEvery, Continuation, RunError, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
-use porosph_kernels::kernel::KernelShape;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -253,11 +252,6 @@ impl RunArgs {
     /// Puts `sim` on the backend of `--backend` (an error if it has no GPU).
     fn attach_backend(&self, sim: &mut Simulation) -> Result<(), String> {
         if self.backend == BackendKind::Gpu {
-            if sim.params.kernel.shape != KernelShape::CubicSpline {
-                return Err("the GPU passes implement the cubic spline kernel only; this scene sets \
-                            [simulation] kernel = \"wendland_c2\": run it with --backend cpu"
-                    .to_string());
-            }
             let gpu = GpuBackend::new(self.gpu_passes).map_err(|e| e.to_string())?;
             if !self.quiet {
                 eprintln!("porosph: GPU backend on {}", gpu.ctx.describe());

@@ -1,6 +1,8 @@
 //! `--backend` on the command line: a clear error, not a panic, when
-//! `--backend gpu` finds no adapter, when a pass cannot go to the GPU, and
-//! when the scene's kernel is one the GPU passes do not implement.
+//! `--backend gpu` finds no adapter and when a pass cannot go to the GPU;
+//! a scene with either kernel runs on it.
+
+mod gpu_common;
 
 use std::process::Command;
 
@@ -35,8 +37,11 @@ fn unknown_backend_and_gpu_pass_are_rejected() {
     assert!(!ok && err.contains("`viscosity` is not a pass the GPU backend runs"), "{err}");
 }
 
+/// Issue 37: the GPU passes take the scene's kernel, so `--backend gpu`
+/// runs a Wendland C2 scene (it was refused here, and only here: the
+/// library's and the bench's GPU attach ran it with the spline's gradient).
 #[test]
-fn backend_gpu_with_the_wendland_kernel_is_a_clear_error() {
+fn backend_gpu_runs_a_wendland_scene() {
     let dir = std::env::temp_dir().join(format!("porosph_gpu_cli_wendland_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("wendland.toml");
@@ -45,8 +50,10 @@ fn backend_gpu_with_the_wendland_kernel_is_a_clear_error() {
     let out = dir.join("out");
     let (scene, out) = (scene.to_str().unwrap(), out.to_str().unwrap());
     let (ok, err) = porosph(&["run", scene, "--backend", "gpu", "--steps", "1", "--quiet", "--out", out], &[]);
-    assert!(!ok && err.contains("cubic spline kernel only") && err.contains("--backend cpu"), "{err}");
-    let (ok, err) = porosph(&["run", scene, "--steps", "1", "--quiet", "--out", out], &[]);
-    assert!(ok, "the CPU runs it: {err}");
     let _ = std::fs::remove_dir_all(&dir);
+    if !ok && err.contains("no GPU adapter found") && !gpu_common::required() {
+        eprintln!("skipped: {err}");
+        return;
+    }
+    assert!(ok, "{err}");
 }

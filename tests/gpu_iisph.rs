@@ -25,14 +25,14 @@ use porosph::backend::gpu::{GpuContext, IisphGpu, RangesGpu, SolveInput, SolveOu
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows};
-use porosph_kernels::kernel::Kernel;
+use porosph_kernels::kernel::{Kernel, KernelShape};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
 
 use gpu_common::Rng;
 
 /// Random input of the Jacobi loop: everything pass 5 reads.
 struct Case {
-    support: f32,
+    kernel: Kernel,
     fx: [Vec<f32>; 3],
     wx: [Vec<f32>; 3],
     fluid_grid: CellGrid,
@@ -74,11 +74,12 @@ fn points(x: &[Vec<f32>; 3]) -> Points<'_> {
 
 /// A jittered block of `nx ny nz` fluid particles (spacing h, jitter
 /// +-0.15 h) on a two-layer wall floor, random rest volumes, masses, u*
-/// and warm-start pressures, set up by the CPU passes 4a-4c.
-fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
+/// and warm-start pressures, set up by the CPU passes 4a-4c with the
+/// kernel of `shape`.
+fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
     let h = 0.01f32;
     let support = 2.0 * h;
-    let kernel = Kernel::new(support);
+    let kernel = Kernel::with_shape(shape, support);
     let mut rng = Rng(seed);
     let mut f: [Vec<f32>; 3] = Default::default();
     for i in 0..nx {
@@ -159,7 +160,7 @@ fn case(nx: usize, ny: usize, nz: usize, seed: u64) -> Case {
         p_wall0[b as usize] = rng.range(0.0, 200.0);
     }
     Case {
-        support,
+        kernel,
         fx,
         wx,
         fluid_grid,
@@ -252,7 +253,7 @@ fn gpu_solve(gpu: &mut Gpu, ctx: &GpuContext, c: &Case, s: SolveSettings) -> Sol
     let mut p_wall = c.p_wall0.clone();
     let mut ap: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let inp = SolveInput {
-        support: c.support,
+        kernel: &c.kernel,
         fluid_grid: &c.fluid_grid,
         wall_grid: &c.wall_grid,
         fluid: points(&c.fx),
@@ -280,19 +281,20 @@ fn rel_linf(a: &[f32], b: &[f32]) -> f64 {
     d / scale.max(f64::MIN_POSITIVE)
 }
 
-#[test]
-fn gpu_jacobi_loop_matches_cpu_pass_on_100k_random_particles() {
-    let Some(ctx) = gpu_common::context() else { return };
-    let c = case(50, 40, 50, 7);
-    assert_eq!(c.p0.len(), 100_000);
-    assert!(c.active.len() > 1000, "the floor takes part: {} active walls", c.active.len());
-    let mut gpu = Gpu::new(&ctx);
-    // Ten iterations exactly, so both run the same sweeps.
-    let s = settings(&c, 10, 10, 0.0);
-    let cpu = cpu_solve(&c, s);
+/// Ten iterations exactly on both (the same sweeps): p, a^p, the wall
+/// pressures and the mean error within the bound of the module doc.
+fn ten_iterations_match(gpu: &mut Gpu, ctx: &GpuContext, c: &Case) {
+    let s = settings(c, 10, 10, 0.0);
+    let cpu = cpu_solve(c, s);
     let t = std::time::Instant::now();
-    let g = gpu_solve(&mut gpu, &ctx, &c, s);
-    eprintln!("GPU loop, 10 iterations, 100k particles on {}: {:.2} s", ctx.describe(), t.elapsed().as_secs_f64());
+    let g = gpu_solve(gpu, ctx, c, s);
+    eprintln!(
+        "GPU loop, 10 iterations, {} particles, {:?} on {}: {:.2} s",
+        c.p0.len(),
+        c.kernel.shape,
+        ctx.describe(),
+        t.elapsed().as_secs_f64()
+    );
     assert_eq!(g.iterations, 10);
     let e_p = rel_linf(&g.p, &cpu.p);
     let e_a = (0..3).map(|k| rel_linf(&g.ap[k], &cpu.ap[k])).fold(0.0, f64::max);
@@ -306,6 +308,16 @@ fn gpu_jacobi_loop_matches_cpu_pass_on_100k_random_particles() {
     assert!(e_p <= 1e-5 && e_a <= 1e-5 && e_w <= 1e-5, "p {e_p:e}, a^p {e_a:e}, wall p {e_w:e}");
     assert!(e_err <= 1e-5, "mean error: gpu {} cpu {}", g.error, cpu.error);
     assert!(cpu.p.iter().any(|&p| p > 0.0) && cpu.p.contains(&0.0), "the clamp is exercised");
+}
+
+#[test]
+fn gpu_jacobi_loop_matches_cpu_pass_on_100k_random_particles() {
+    let Some(ctx) = gpu_common::context() else { return };
+    let c = case(KernelShape::CubicSpline, 50, 40, 50, 7);
+    assert_eq!(c.p0.len(), 100_000);
+    assert!(c.active.len() > 1000, "the floor takes part: {} active walls", c.active.len());
+    let mut gpu = Gpu::new(&ctx);
+    ten_iterations_match(&mut gpu, &ctx, &c);
 
     // To convergence: the same number of iterations (or one more or less,
     // if the error crosses the target between the two roundings).
@@ -323,7 +335,7 @@ fn gpu_jacobi_loop_matches_cpu_pass_on_100k_random_particles() {
 #[test]
 fn gpu_jacobi_loop_is_reproducible_run_to_run() {
     let Some(ctx) = gpu_common::context() else { return };
-    let c = case(30, 20, 30, 11);
+    let c = case(KernelShape::CubicSpline, 30, 20, 30, 11);
     let s = settings(&c, 2, 100, 1e-3);
     let mut gpu = Gpu::new(&ctx);
     let a = gpu_solve(&mut gpu, &ctx, &c, s);
@@ -339,4 +351,14 @@ fn gpu_jacobi_loop_is_reproducible_run_to_run() {
             assert_eq!(bits(&a.ap[k]), bits(&r.ap[k]));
         }
     }
+}
+
+/// Issue 37: with the Wendland C2 kernel the GPU recomputes g_ij with
+/// Wendland's gradient, as the CPU's rows and pairs were set up (it used
+/// the cubic spline's whatever the scene said). Same bound as the spline's.
+#[test]
+fn gpu_jacobi_loop_matches_cpu_pass_with_the_wendland_kernel() {
+    let Some(ctx) = gpu_common::context() else { return };
+    let c = case(KernelShape::WendlandC2, 50, 10, 50, 13);
+    ten_iterations_match(&mut Gpu::new(&ctx), &ctx, &c);
 }

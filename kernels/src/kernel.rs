@@ -141,6 +141,19 @@ impl Kernel {
     pub fn w0(&self) -> f32 {
         self.k
     }
+
+    /// 1 / H, 1/m.
+    pub fn inv_support(&self) -> f32 {
+        self.inv_h
+    }
+
+    /// The gradient's constant l, 1/m^4 (cubic spline: 48 / (pi H^4);
+    /// Wendland C2: calibrated, see the field): what a copy of
+    /// [`Self::grad_over_r`] elsewhere (the GPU's WGSL) needs besides the
+    /// shape and H, so that it reads the constants from here.
+    pub fn grad_scale(&self) -> f32 {
+        self.l
+    }
 }
 
 /// Wendland C2 at H = 2 d on the cubic lattice of spacing d: d^3 sum_j W_ij

@@ -13,6 +13,7 @@ use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Rows, Vel, VelMut};
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::{PairLists, Points};
 use porosph_kernels::phases::PhaseConstants;
 use porosph_kernels::solid_rows::SolidNeighbours;
@@ -104,8 +105,8 @@ pub struct SolveSettings {
 /// The system of pass 5 (P-Eqs. 25-29 with pressure boundaries, PHYSICS.md
 /// §2.2-2.4). The pair lists hold V̄_ij grad W_ij (`iisph::fluid_setup`).
 pub struct PressureSystem<'a> {
-    /// Kernel support H, m.
-    pub support: f32,
+    /// The scene's kernel (the GPU passes recompute g_ij with it).
+    pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
     pub fluid: Points<'a>,
     pub walls: WallInput<'a>,
@@ -208,8 +209,8 @@ pub struct DriftProblem<'a> {
 
 /// What the drift pass reads.
 pub struct DriftInput<'a> {
-    /// Kernel support H, m.
-    pub support: f32,
+    /// The scene's kernel (the GPU passes recompute g_ij with it).
+    pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
     pub fluid: Points<'a>,
     /// Current volume V of each particle (the volume of the harmonic pair

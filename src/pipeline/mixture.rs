@@ -94,7 +94,7 @@ pub(super) fn drift_and_transport<'a>(
         }
         let prob = DriftProblem {
             input: DriftInput {
-                support: p.kernel.support,
+                kernel: &p.kernel,
                 fluid_grid: &w.fluid_grid,
                 fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
                 vol,

@@ -178,7 +178,7 @@ pub(super) fn solve<'a>(
     let rows_active = sum_f64(n, parts, |i| (rows.fluid.diag[i] != 0.0) as u32 as f64).max(1.0);
     let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid } = rows;
     let sys = PressureSystem {
-        support: p.kernel.support,
+        kernel: &p.kernel,
         fluid_grid: &w.fluid_grid,
         fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
         walls: WallInput {

@@ -312,8 +312,7 @@ pub enum KernelChoice {
     CubicSpline,
     /// `"wendland_c2"`: Wendland C2, its lattice sum and gradient
     /// calibrated on the start lattice; its lattice holds at positive
-    /// pressure, so a fluid at rest moves about three times less (CPU
-    /// backend only).
+    /// pressure, so a fluid at rest moves about three times less.
     WendlandC2,
 }
 

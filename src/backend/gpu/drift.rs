@@ -11,11 +11,11 @@
 //! inner fractions and q_k,f are uploaded for it.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
+use super::kernel::KernelParams;
 use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
 pub use crate::backend::passes::{DriftInput, DriftOutput, PorousDriftInput};
 use bytemuck::{Pod, Zeroable};
-use std::f32::consts::PI;
 
 /// Phases the shader's parameter block has room for.
 pub const MAX_PHASES: usize = 8;
@@ -31,14 +31,8 @@ pub struct DriftParams {
     pub fraction_pressure: u32,
     /// 1: F_k = w_k - alpha_k m; 0: F_k = alpha_k u_mk.
     pub conservative: u32,
-    /// Kernel support H, m.
-    pub support: f32,
-    /// 1 / H, 1/m.
-    pub inv_support: f32,
-    /// 8 / (pi H^3), 1/m^3.
-    pub kernel_k: f32,
-    /// 48 / (pi H^4), 1/m^4.
-    pub kernel_l: f32,
+    /// The scene's kernel.
+    pub kernel: KernelParams,
     /// 1: add `extra_scale` e_k (P-Eqs. 11-12's porous terms); 0: none.
     pub extra_term: u32,
     pub extra_scale: f32,
@@ -197,16 +191,12 @@ impl DriftGpu {
             }));
         }
 
-        let h = inp.support;
         let mut params = DriftParams {
             n: n as u32,
             n_phases: np as u32,
             fraction_pressure: inp.p_per_fraction.is_some() as u32,
             conservative: inp.conservative as u32,
-            support: h,
-            inv_support: 1.0 / h,
-            kernel_k: 8.0 / (PI * h * h * h),
-            kernel_l: 48.0 / (PI * h * h * h * h),
+            kernel: KernelParams::from(inp.kernel),
             extra_term: inp.porous.is_some() as u32,
             extra_scale: inp.porous.as_ref().map_or(0.0, |pd| -pd.pore_drift),
             uniform_volume: 0.0,

@@ -15,14 +15,15 @@
 //! grouped. At the end it reads back p, a^p and the wall pressures.
 
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
+use super::kernel::KernelParams;
 use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
 pub use crate::backend::passes::{SolveReport, SolveSettings};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{Rows, VelMut};
+use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::Points;
-use std::f32::consts::PI;
 
 /// Iterations queued per submission (the status is read back after each).
 pub const ITERATIONS_PER_SUBMIT: u32 = 4;
@@ -36,14 +37,8 @@ pub struct IisphParams {
     pub n_active: u32,
     pub min_iterations: u32,
     pub max_iterations: u32,
-    /// Kernel support H, m.
-    pub support: f32,
-    /// 1 / H, 1/m.
-    pub inv_support: f32,
-    /// 8 / (pi H^3), 1/m^3.
-    pub kernel_k: f32,
-    /// 48 / (pi H^4), 1/m^4.
-    pub kernel_l: f32,
+    /// The scene's kernel.
+    pub kernel: KernelParams,
     /// Time step, s.
     pub dt: f32,
     /// Jacobi relaxation omega.
@@ -55,19 +50,14 @@ pub struct IisphParams {
 }
 
 impl IisphParams {
-    /// The parameters of a solve; the kernel constants are computed as
-    /// `Kernel::new` computes them.
-    pub fn new(support: f32, s: &SolveSettings, n_fluid: usize, n_active: usize) -> Self {
-        let h = support;
+    /// The parameters of a solve with the scene's kernel.
+    pub fn new(kernel: &Kernel, s: &SolveSettings, n_fluid: usize, n_active: usize) -> Self {
         Self {
             n_fluid: n_fluid as u32,
             n_active: n_active as u32,
             min_iterations: s.min_iterations,
             max_iterations: s.max_iterations,
-            support: h,
-            inv_support: 1.0 / h,
-            kernel_k: 8.0 / (PI * h * h * h),
-            kernel_l: 48.0 / (PI * h * h * h * h),
+            kernel: KernelParams::from(kernel),
             dt: s.dt,
             omega: s.omega,
             max_density_error: s.max_density_error,
@@ -81,8 +71,8 @@ impl IisphParams {
 /// walls are what the cell-range tables ([`RangesGpu::ensure`]) are built
 /// from: the loop itself reads them from the tables on the device.
 pub struct SolveInput<'a> {
-    /// Kernel support H, m.
-    pub support: f32,
+    /// The scene's kernel (the one the rows were set up with).
+    pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
     pub wall_grid: &'a CellGrid,
     pub fluid: Points<'a>,
@@ -302,7 +292,7 @@ impl IisphGpu {
 
         // Uploads: once per step, only what the loop reads (the tables,
         // wall positions and active walls are on the device already).
-        let params = IisphParams::new(inp.support, s, n, na);
+        let params = IisphParams::new(inp.kernel, s, n, na);
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let b = &self.bufs;
         b[POS].upload(ctx, &self.pos);

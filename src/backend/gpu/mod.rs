@@ -6,6 +6,7 @@
 mod buffers;
 pub mod drift;
 pub mod iisph;
+pub mod kernel;
 pub mod neighbors;
 pub mod ranges;
 #[cfg(test)]
@@ -13,6 +14,7 @@ mod shader_tests;
 
 pub use drift::{DriftGpu, DriftInput, DriftOutput, DriftParams, PorousDriftInput};
 pub use iisph::{IisphGpu, IisphParams, SolveInput, SolveOutput, SolveReport, SolveSettings};
+pub use kernel::KernelParams;
 pub use neighbors::{NeighborParams, NeighborsGpu};
 pub use ranges::{RangesGpu, RangesParams, WallInput};
 
@@ -28,8 +30,9 @@ use std::fmt;
 /// Shared WGSL (WGSL has no include), by file name: prepended to the
 /// shaders of [`SHADERS`] that list it. `common_grid.wgsl`: WG, RANGES, the
 /// grid constants, `linear_index`, `cell_coord`, `morton`;
-/// `common_kernel.wgsl`: `grad_over_r`, `harmonic_volumes`,
-/// `pair_gradient`, which read the kernel fields of the shader's `P`.
+/// `common_kernel.wgsl`: `KernelParams` (the scene's kernel, [`KernelParams`]),
+/// `grad_over_r`, `harmonic_volumes`, `pair_gradient`, which read the
+/// shader's `P.kernel`.
 pub const COMMON: [(&str, &str); 2] = [
     ("common_grid.wgsl", include_str!("../../../shaders/common_grid.wgsl")),
     ("common_kernel.wgsl", include_str!("../../../shaders/common_kernel.wgsl")),
@@ -355,7 +358,7 @@ impl Passes for GpuBackend {
     fn pressure_solve(&mut self, sys: &PressureSystem, mut x: Unknowns, arena: &Bump) -> SolveReport {
         if self.passes.pressure_solve && sys.solids.is_none() {
             let inp = SolveInput {
-                support: sys.support,
+                kernel: sys.kernel,
                 fluid_grid: sys.fluid_grid,
                 wall_grid: sys.walls.grid,
                 fluid: sys.fluid,

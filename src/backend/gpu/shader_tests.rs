@@ -5,6 +5,7 @@
 
 use super::drift::DriftParams;
 use super::iisph::IisphParams;
+use super::kernel::KernelParams;
 use super::neighbors::NeighborParams;
 use super::ranges::RangesParams;
 use super::{shader_source, COMMON, SHADERS};
@@ -84,16 +85,33 @@ fn iisph_params_layout_matches_wgsl() {
         n_active,
         min_iterations,
         max_iterations,
-        support,
-        inv_support,
-        kernel_k,
-        kernel_l,
+        kernel,
         dt,
         omega,
         max_density_error,
         rows_active,
     );
     assert_eq!(wgsl_layout(&module, "IisphParams"), rust);
+}
+
+#[test]
+fn kernel_params_layout_and_shapes_match_wgsl() {
+    for file in ["iisph.wgsl", "drift.wgsl"] {
+        let module = module(file);
+        let rust = rust_layout!(KernelParams, shape, support, inv_support, grad_scale);
+        assert_eq!(wgsl_layout(&module, "KernelParams"), rust, "{file}");
+        // The shape numbers of src/backend/gpu/kernel.rs.
+        for (name, value) in
+            [("KERNEL_CUBIC_SPLINE", super::kernel::CUBIC_SPLINE), ("KERNEL_WENDLAND_C2", super::kernel::WENDLAND_C2)]
+        {
+            let c = module.constants.iter().find(|(_, c)| c.name.as_deref() == Some(name));
+            let init = c.map(|(_, c)| &module.global_expressions[c.init]);
+            assert!(
+                matches!(init, Some(naga::Expression::Literal(naga::Literal::U32(v))) if *v == value),
+                "{file}: {name} is {init:?}, not {value}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -124,10 +142,7 @@ fn drift_params_layout_and_entry_points_match_wgsl() {
         n_phases,
         fraction_pressure,
         conservative,
-        support,
-        inv_support,
-        kernel_k,
-        kernel_l,
+        kernel,
         extra_term,
         extra_scale,
         uniform_volume,
