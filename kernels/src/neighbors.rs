@@ -77,6 +77,33 @@ impl PairLists {
         &mut self.blocks[..nb]
     }
 
+    /// Makes `self` the pairs of `src` with the gradients times `scale`,
+    /// for the queries i where `active[i]`; every other query keeps no
+    /// pairs. The kernel values W are not copied (`w` stays empty). A loop
+    /// over the pairs of an inactive query then adds nothing, as it would
+    /// over pairs whose terms are all 0.
+    pub fn copy_scaled_where(&mut self, src: &PairLists, scale: f32, active: &[bool]) {
+        let nb = src.used().len();
+        if self.blocks.len() < nb {
+            self.blocks.resize_with(nb, PairBlock::default);
+        }
+        self.n = src.n;
+        self.blocks[..nb].par_iter_mut().zip(src.used().par_iter()).enumerate().for_each(|(b, (d, s))| {
+            d.clear();
+            d.start.push(0);
+            for q in 0..s.start.len().saturating_sub(1) {
+                if active[b * BLOCK + q] {
+                    let r = s.range(q);
+                    d.j.extend_from_slice(&s.j[r.clone()]);
+                    d.gx.extend(s.gx[r.clone()].iter().map(|x| x * scale));
+                    d.gy.extend(s.gy[r.clone()].iter().map(|x| x * scale));
+                    d.gz.extend(s.gz[r].iter().map(|x| x * scale));
+                }
+                d.start.push(d.j.len() as u32);
+            }
+        });
+    }
+
     /// Total number of pairs.
     pub fn pairs(&self) -> usize {
         self.used().iter().map(|b| b.len()).sum()

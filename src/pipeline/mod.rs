@@ -149,7 +149,8 @@ struct Workspace {
     /// With porous solids and several phases: the fluid-fluid pairs with
     /// h^3 grad W_ij, the full-particle volumes of the inner (beta)
     /// gradients and transport, which the pressure solve's pair volumes
-    /// (0 for an inner particle) would cut off.
+    /// (0 for an inner particle) would cut off; only of the particles with
+    /// inner fluid nearby (`porous::near_inner_fluid`).
     ffb: PairLists,
     /// Fluid-wall pairs.
     fb: PairLists,

@@ -24,6 +24,7 @@ use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self, Vel, VelMut};
+use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::porous::{
     absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
     FluidPhaseOut, Fractions, SolidPhase,
@@ -141,16 +142,31 @@ pub(super) fn solid_terms<'a>(
 ) -> PoreTerms<'a> {
     tm.time(pass::POROUS, || {
         if mixture {
-            w.ffb.clone_from(&w.ff);
-            let cell = p.cell_volume();
-            w.ffb.used_mut().par_iter_mut().for_each(|blk| {
-                for g in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
-                    g.iter_mut().for_each(|x| *x *= cell);
-                }
-            });
+            let active = near_inner_fluid(fluid, &w.ff, arena);
+            w.ffb.copy_scaled_where(&w.ff, p.cell_volume(), active);
         }
         pore_state(p, fluid, solids, w, arena, part.n_f, part.mask)
     })
+}
+
+/// The fluid particles that have inner fluid (some beta_k,i > 0) or a
+/// neighbour with it: only there do the inner drift (P-Eq. 12, 0 where
+/// beta_f < `MIN_ALPHA_F`) and the inner transport (pair fluxes
+/// (F_k,i + F_k,j) . grad W, F_k = 0 where beta_f < `MIN_ALPHA_F`) have a
+/// nonzero term, so only their pairs go into `w.ffb` (bit for bit the same
+/// fractions; most of a pool never touches a porous solid).
+fn near_inner_fluid<'a>(fluid: &FluidStore, ff: &PairLists, arena: &'a Bump) -> &'a [bool] {
+    let n = fluid.len();
+    let wet = arena.alloc_slice_fill_copy(n, false);
+    wet.par_iter_mut().enumerate().for_each(|(i, w)| *w = fluid.beta.iter().any(|b| b[i] > 0.0));
+    let wet = &*wet;
+    let active = arena.alloc_slice_fill_copy(n, false);
+    active.par_chunks_mut(BLOCK).zip(ff.used().par_iter()).enumerate().for_each(|(b, (a, blk))| {
+        for (q, a) in a.iter_mut().enumerate() {
+            *a = wet[b * BLOCK + q] || blk.j[blk.range(q)].iter().any(|&j| wet[j as usize]);
+        }
+    });
+    active
 }
 
 /// The absorption exchange of pass 12 (P-Eqs. 6-7, 22) within each
@@ -396,7 +412,7 @@ pub(super) fn wall_guard(
     p: &Params,
     fluid: &FluidStore,
     walls: &WallStore,
-    fb: &porosph_kernels::neighbors::PairLists,
+    fb: &PairLists,
     u_star: Vel,
     dt: f32,
     ap: [&mut [f32]; 3],
