@@ -953,9 +953,9 @@ fn render_scene(frame: &Frame, opts: &RenderOptions, w: u32, range: Option<[f32;
     // Outline width, pixels.
     let t = (h / 360).max(1) as usize;
     // Whether pixel (px, py), where the solids' silhouette is, lies on its
-    // edge: the silhouette is not in front of an opaque point that is not
-    // a solid, and a pixel `t` away is outside it or on a solid well
-    // behind (another body).
+    // edge: no opaque point but a solid is nearer than the silhouette's
+    // particle there or about half a particle away, and a pixel `t` away
+    // is outside the silhouette or on a solid well behind (another body).
     let edge = |px: usize, py: usize| -> bool {
         let (wu, hu) = (w as usize, h as usize);
         let sk = sbuf[py * wu + px].load(Ordering::Relaxed);
@@ -963,8 +963,19 @@ fn render_scene(frame: &Frame, opts: &RenderOptions, w: u32, range: Option<[f32;
             return false;
         }
         let s = splat(sk);
-        let zk = zbuf[py * wu + px].load(Ordering::Relaxed);
-        if zk != u64::MAX && !splat(zk).solid && splat(zk).depth < s.depth - 2.0 * s.world_r {
+        // Hidden by a nearer point at the pixel, or around it (the pixel
+        // may be in a gap between the nearer particles).
+        let g = (0.6 * s.r).ceil() as usize;
+        let around = [(0, 0), (g, 0), (0, g), (g, g)].into_iter().flat_map(|(dx, dy)| {
+            [(px + dx, py + dy), (px.wrapping_sub(dx), py + dy), (px + dx, py.wrapping_sub(dy))]
+                .into_iter()
+                .chain([(px.wrapping_sub(dx), py.wrapping_sub(dy))])
+        });
+        let hidden = around.filter(|&(x, y)| x < wu && y < hu).any(|(x, y)| {
+            let zk = zbuf[y * wu + x].load(Ordering::Relaxed);
+            zk != u64::MAX && !splat(zk).solid && splat(zk).depth < s.depth
+        });
+        if hidden {
             return false;
         }
         let near = [(px.wrapping_sub(t), py), (px + t, py), (px, py.wrapping_sub(t)), (px, py + t)];
