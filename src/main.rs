@@ -172,7 +172,7 @@ struct RenderArgs {
     /// Draw only the particles on one side of a plane normal to an axis:
     /// 'x<0.15' keeps those with x below 0.15 m (axes x, y, z; < or >).
     /// Repeat for several planes. The camera stays where it was without it.
-    #[arg(long, value_name = "AXIS<VALUE", value_parser = parse_clip, allow_hyphen_values = true)]
+    #[arg(long, value_name = "PLANE", value_parser = parse_clip, allow_hyphen_values = true)]
     clip: Vec<Clip>,
     /// Opacity of the fluid, 0 to 1 (below 1 the solids show through it).
     #[arg(long, value_name = "0..1", default_value_t = 1.0, value_parser = parse_opacity)]
