@@ -67,10 +67,10 @@ impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for PlotE
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// DejaVu Sans, printable ASCII and a few symbols (assets/fonts/LICENSE-DejaVu.txt).
-const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
-pub(crate) const FAMILY: &str = "sans-serif";
+pub(crate) const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
+const FAMILY: &str = "sans-serif";
 
-pub(crate) fn register_font() -> Result<(), PlotError> {
+fn register_font() -> Result<(), PlotError> {
     static LOADED: OnceLock<bool> = OnceLock::new();
     let loaded = *LOADED.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if loaded {

@@ -2,20 +2,20 @@
 //! top left, and for a colormap a colour bar in a panel at the right with
 //! the field's name, its unit and the values of its ends and three ticks
 //! between. Text is drawn with the font built into the binary (the one
-//! `porosph plot` uses), through plotters.
+//! `porosph plot` uses) through ab_glyph, each glyph placed at its own
+//! bearing.
 
 use super::scale::{tick_label, ColorScale};
 use super::{linear_to_srgb8, RenderError};
-use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
+use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 
 /// Smallest image that is annotated, pixels: smaller ones (thumbnails)
 /// show the particles only.
 pub const MIN_ANNOTATED: (u32, u32) = (240, 120);
 
 /// Text size, pixels, for an image `height` pixels high.
-fn font_px(height: u32) -> f64 {
-    (f64::from(height) / 45.0).clamp(12.0, 28.0)
+fn font_px(height: u32) -> f32 {
+    (height as f32 / 45.0).clamp(12.0, 28.0)
 }
 
 /// Width of the colour bar's panel at the right of a `width` x `height`
@@ -27,29 +27,75 @@ pub fn panel_width(width: u32, height: u32) -> u32 {
 /// A colour ramp: linear RGB of 0..1.
 pub type Ramp<'a> = &'a dyn Fn(f32) -> [f32; 3];
 
-const INK: RGBColor = RGBColor(25, 25, 25);
+/// Text and line colour, sRGB.
+const INK: [u8; 3] = [25, 25, 25];
 
-fn style(px: f64) -> TextStyle<'static> {
-    TextStyle::from((crate::plot::FAMILY, px).into_font()).color(&INK)
+/// An sRGB image being annotated.
+struct Canvas<'a> {
+    rgb: &'a mut [u8],
+    w: u32,
+    h: u32,
+    font: FontRef<'static>,
 }
 
-/// Blends `c` (sRGB) over the rectangle `x0..x1, y0..y1` of `rgb` (an
-/// image `w` pixels wide) with opacity `a`.
-fn veil(rgb: &mut [u8], w: u32, [x0, x1, y0, y1]: [u32; 4], c: [u8; 3], a: f32) {
-    for y in y0..y1 {
-        for x in x0..x1.min(w) {
-            let i = 3 * (y as usize * w as usize + x as usize);
-            for k in 0..3 {
-                let v = f32::from(rgb[i + k]);
-                rgb[i + k] = (v + a * (f32::from(c[k]) - v)).round() as u8;
+impl Canvas<'_> {
+    /// Blends `c` over pixel (x, y) with opacity `a`; outside: nothing.
+    fn blend(&mut self, x: i32, y: i32, c: [u8; 3], a: f32) {
+        if x < 0 || y < 0 || x >= self.w as i32 || y >= self.h as i32 {
+            return;
+        }
+        let i = 3 * (y as usize * self.w as usize + x as usize);
+        for (v, c) in self.rgb[i..i + 3].iter_mut().zip(c) {
+            let f = f32::from(*v);
+            *v = (f + a.clamp(0.0, 1.0) * (f32::from(c) - f)).round() as u8;
+        }
+    }
+
+    /// Blends `c` over the rectangle `x0..x1` x `y0..y1` with opacity `a`.
+    fn fill(&mut self, [x0, x1, y0, y1]: [i32; 4], c: [u8; 3], a: f32) {
+        for y in y0..y1 {
+            for x in x0..x1 {
+                self.blend(x, y, c, a);
             }
+        }
+    }
+
+    /// Width of `s` at `px` pixels, pixels.
+    fn text_width(&self, s: &str, px: f32) -> f32 {
+        let f = self.font.as_scaled(PxScale::from(px));
+        let mut prev = None;
+        s.chars().fold(0.0, |w, c| {
+            let id = f.glyph_id(c);
+            let kern = prev.map_or(0.0, |p| f.kern(p, id));
+            prev = Some(id);
+            w + kern + f.h_advance(id)
+        })
+    }
+
+    /// Draws `s` at `px` pixels in [`INK`], starting at `x`, the middle of
+    /// its digits and capitals at `y_mid`.
+    fn text(&mut self, s: &str, px: f32, x: f32, y_mid: f32) {
+        let scale = PxScale::from(px);
+        let font = self.font.clone();
+        let f = font.as_scaled(scale);
+        let baseline = y_mid + 0.36 * px;
+        let (mut caret, mut prev) = (x, None);
+        for c in s.chars() {
+            let id = f.glyph_id(c);
+            caret += prev.map_or(0.0, |p| f.kern(p, id));
+            if let Some(o) = font.outline_glyph(id.with_scale_and_position(scale, point(caret, baseline))) {
+                let b = o.px_bounds();
+                o.draw(|gx, gy, cover| self.blend(b.min.x as i32 + gx as i32, b.min.y as i32 + gy as i32, INK, cover));
+            }
+            caret += f.h_advance(id);
+            prev = Some(id);
         }
     }
 }
 
 /// Draws the time stamp and, with `bar`, the colour bar (`scale` and the
-/// ramp it is drawn with, linear RGB of 0..1) into `rgb`, a `w` x `h`
-/// image whose particles fill the `scene_w` columns at the left.
+/// ramp it is drawn with) into `rgb`, a `w` x `h` sRGB image whose
+/// particles fill the `scene_w` columns at the left.
 pub fn draw(
     rgb: &mut [u8],
     (w, h): (u32, u32),
@@ -58,67 +104,52 @@ pub fn draw(
     bar: Option<(&ColorScale, Ramp)>,
     background: [u8; 3],
 ) -> Result<(), RenderError> {
-    crate::plot::register_font().map_err(|e| RenderError(e.0))?;
+    let font = FontRef::try_from_slice(crate::plot::FONT)
+        .map_err(|e| RenderError(format!("the built-in font does not load: {e}")))?;
+    let mut cv = Canvas { rgb, w, h, font };
     let px = font_px(h);
-    let pad = (0.6 * px).round() as u32;
+    let pad = (0.6 * px).round();
+    // The time stamp on a light box, so that it reads over particles too.
     let stamp = format!("t = {time:.3} s");
-    let err = |e: DrawingAreaErrorKind<_>| RenderError(format!("drawing the annotations: {e}"));
-    let (tw, th) = {
-        let root = BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area();
-        root.estimate_text_size(&stamp, &style(px)).map_err(err)?
-    };
-    // A light box behind the time stamp, so it reads over particles too.
-    veil(rgb, w, [0, (tw + 2 * pad).min(scene_w), 0, (th + 2 * pad).min(h)], background, 0.75);
-    let mut ramp_rows = Vec::new();
-    let mut geometry = None;
-    if let Some((scale, ramp)) = bar {
-        // The bar: 1.2 font sizes wide, from under the title to near the
-        // bottom; the top row is the range's top, the bottom row its bottom.
-        let x0 = scene_w + pad;
-        let bw = (1.2 * px).round() as u32;
-        let (y0, y1) = ((3.2 * px).round() as u32, h.saturating_sub((1.5 * px).round() as u32));
-        if y1 > y0 + 2 && x0 + bw + 1 < w {
-            for y in y0..y1 {
-                let t = 1.0 - (y - y0) as f32 / (y1 - 1 - y0) as f32;
-                ramp_rows.push(ramp(t).map(linear_to_srgb8));
-            }
-            geometry = Some((x0, bw, y0, y1, scale));
-        }
+    let box_w = (cv.text_width(&stamp, px) + 2.0 * pad).min(scene_w as f32);
+    cv.fill([0, box_w as i32, 0, (px + 2.0 * pad) as i32], background, 0.75);
+    cv.text(&stamp, px, pad, pad + 0.5 * px);
+    let Some((scale, ramp)) = bar else { return Ok(()) };
+    // The bar: 1.2 font sizes wide, from under the title to near the
+    // bottom; its top row is the range's top, its bottom row the bottom.
+    let x0 = (scene_w as f32 + pad) as i32;
+    let bw = (1.2 * px).round() as i32;
+    let (y0, y1) = ((3.2 * px).round() as i32, h as i32 - (1.5 * px).round() as i32);
+    if y1 <= y0 + 2 || x0 + bw + 1 >= w as i32 {
+        return Ok(());
     }
-    if let Some((x0, bw, y0, _, _)) = geometry {
-        for (r, c) in ramp_rows.iter().enumerate() {
-            let row = (y0 as usize + r) * w as usize;
-            for x in x0..x0 + bw {
-                rgb[3 * (row + x as usize)..3 * (row + x as usize) + 3].copy_from_slice(c);
-            }
-        }
+    for y in y0..y1 {
+        let t = 1.0 - (y - y0) as f32 / (y1 - 1 - y0) as f32;
+        let c = ramp(t).map(linear_to_srgb8);
+        cv.fill([x0, x0 + bw, y, y + 1], c, 1.0);
     }
-    let root = BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area();
-    let left = |x: u32, y: u32| (Pos::new(HPos::Left, VPos::Center), (x as i32, y as i32));
-    let (p, at) = left(pad, pad + th / 2);
-    root.draw(&Text::new(stamp, at, style(px).pos(p))).map_err(err)?;
-    if let Some((x0, bw, y0, y1, scale)) = geometry {
-        let (title, factor) = scale.title();
-        // The title over the bar, smaller if it would not fit the panel.
-        let room = f64::from(w - scene_w - pad);
-        let (title_w, _) = root.estimate_text_size(&title, &style(px)).map_err(err)?;
-        let tpx = if f64::from(title_w) > room { px * room / f64::from(title_w) } else { px };
-        let (p, at) = left(scene_w + pad, (1.6 * px).round() as u32);
-        root.draw(&Text::new(title, at, style(tpx).pos(p))).map_err(err)?;
-        root.draw(&Rectangle::new([(x0 as i32 - 1, y0 as i32 - 1), ((x0 + bw) as i32, y1 as i32)], INK))
-            .map_err(err)?;
-        let [lo, hi] = scale.range.map(|v| v / factor);
-        let (span, mag) = (hi - lo, lo.abs().max(hi.abs()));
-        for k in 0..5 {
-            let f = k as f32 / 4.0;
-            let y = (y1 - 1) as f32 - f * (y1 - 1 - y0) as f32;
-            let xr = (x0 + bw) as i32;
-            let tick = (0.4 * px) as i32;
-            root.draw(&PathElement::new([(xr, y as i32), (xr + tick, y as i32)], INK)).map_err(err)?;
-            let (p, at) = left((xr + tick) as u32 + 3, y as u32);
-            root.draw(&Text::new(tick_label(lo + f * span, span, mag), at, style(0.9 * px).pos(p))).map_err(err)?;
-        }
+    // Its frame.
+    for [a, b, c, d] in [[x0 - 1, x0 + bw + 1, y0 - 1, y0], [x0 - 1, x0 + bw + 1, y1, y1 + 1]] {
+        cv.fill([a, b, c, d], INK, 1.0);
     }
-    root.present().map_err(err)?;
+    for x in [x0 - 1, x0 + bw] {
+        cv.fill([x, x + 1, y0, y1], INK, 1.0);
+    }
+    // The title over the bar, smaller if it would not fit the panel.
+    let (title, factor) = scale.title();
+    let room = (w - scene_w) as f32 - pad;
+    let tw = cv.text_width(&title, px);
+    let tpx = if tw > room { px * room / tw } else { px };
+    cv.text(&title, tpx, scene_w as f32 + pad, 1.6 * px);
+    // Ticks at the ends and at quarters, labelled in the title's unit.
+    let [lo, hi] = scale.range.map(|v| v / factor);
+    let (span, mag) = (hi - lo, lo.abs().max(hi.abs()));
+    let tick = (0.4 * px).round() as i32;
+    for k in 0..5 {
+        let f = k as f32 / 4.0;
+        let y = ((y1 - 1) as f32 - f * (y1 - 1 - y0) as f32).round() as i32;
+        cv.fill([x0 + bw, x0 + bw + tick, y, y + 1], INK, 1.0);
+        cv.text(&tick_label(lo + f * span, span, mag), 0.9 * px, (x0 + bw + tick + 3) as f32, y as f32);
+    }
     Ok(())
 }
