@@ -435,8 +435,8 @@ fn finite(p: [f32; 3]) -> bool {
     p.iter().all(|c| c.is_finite())
 }
 
-/// The points the default camera, spacing and colour range are taken from:
-/// finite fluid and solid points.
+/// The points the particle size is taken from: finite fluid and solid
+/// points.
 fn framed_points(frame: &Frame) -> Result<Vec<usize>, RenderError> {
     let k = kinds(frame)?;
     Ok((0..frame.points.len()).filter(|&i| !is_wall(k, i) && finite(frame.points[i])).collect())
@@ -447,7 +447,7 @@ pub type Bounds = ([f32; 3], [f32; 3]);
 
 /// Axis-aligned bounds of the finite fluid and solid points, and of the
 /// wall points too if `walls` (`None` if there are none): what the default
-/// camera frames.
+/// camera frames when nothing is hidden ([`shown_bounds`]).
 pub fn bounds(frame: &Frame, walls: bool) -> Result<Option<Bounds>, RenderError> {
     let idx = if walls {
         (0..frame.points.len()).filter(|&i| finite(frame.points[i])).collect()
