@@ -9,7 +9,7 @@ use porosph::io::inspect_frame;
 use porosph::io::read_stats;
 use porosph::pipeline::Simulation;
 use porosph::plot::{self, PlotOptions};
-use porosph::render::{self, Camera, CameraSpec, ColorMode, RenderOptions};
+use porosph::render::{self, Clip, ColorMode, Hide, RenderOptions};
 use porosph::run::output::{self, Claim};
 use porosph::run::{interrupt, run, CheckpointEvery, Continuation, RunError, RunOptions, DEFAULT_KEEP};
 use porosph::scene::Scene;
@@ -159,6 +159,26 @@ struct RenderArgs {
     /// Draw the wall particles (faintly).
     #[arg(long)]
     walls: bool,
+    /// Colour range of speed, pressure or saturation, in the field's unit
+    /// (default: the 1st to 99th percentile of the drawn particles' values,
+    /// from 0 for speed and saturation; with --movie over all frames).
+    #[arg(long, value_name = "MIN,MAX", value_parser = parse_range, allow_hyphen_values = true)]
+    range: Option<[f32; 2]>,
+    /// Leave out a kind of particle: fluid, solids or walls (repeat the
+    /// option or give a comma list).
+    #[arg(long, value_name = "KINDS", value_parser = parse_hide)]
+    hide: Vec<Hide>,
+    /// Draw only the particles on one side of a plane normal to an axis:
+    /// 'x<0.15' keeps those with x below 0.15 m (axes x, y, z; < or >).
+    /// Repeat for several planes. The camera stays where it was without it.
+    #[arg(long, value_name = "PLANE", value_parser = parse_clip, allow_hyphen_values = true)]
+    clip: Vec<Clip>,
+    /// Opacity of the fluid, 0 to 1 (below 1 the solids show through it).
+    #[arg(long, value_name = "0..1", default_value_t = 1.0, value_parser = parse_opacity)]
+    fluid_opacity: f32,
+    /// Leave out the time stamp and the colour bar.
+    #[arg(long)]
+    no_annotations: bool,
     /// Orthographic camera (default: perspective).
     #[arg(long, help_heading = "Camera")]
     ortho: bool,
@@ -204,6 +224,42 @@ fn parse_fov(s: &str) -> Result<f32, String> {
 
 fn parse_color(s: &str) -> Result<ColorMode, String> {
     s.parse()
+}
+
+/// `MIN,MAX`: two finite numbers, MIN < MAX.
+fn parse_range(s: &str) -> Result<[f32; 2], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected two numbers MIN,MAX in the field's unit, e.g. 0,2000"))?;
+    let [lo, hi] = v[..] else {
+        return Err(format!("{s:?}: expected two numbers MIN,MAX in the field's unit, e.g. 0,2000"));
+    };
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(format!("{s:?}: MIN and MAX must be finite numbers"));
+    }
+    if lo >= hi {
+        return Err(format!("{s:?}: MIN must be less than MAX"));
+    }
+    Ok([lo, hi])
+}
+
+fn parse_hide(s: &str) -> Result<Hide, String> {
+    let mut h = Hide::default();
+    h.add(s)?;
+    Ok(h)
+}
+
+fn parse_clip(s: &str) -> Result<Clip, String> {
+    s.parse()
+}
+
+fn parse_opacity(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(a) if (0.0..=1.0).contains(&a) => Ok(a),
+        _ => Err(format!("{s:?}: expected an opacity from 0 (invisible) to 1 (opaque)")),
+    }
 }
 
 fn parse_every(s: &str) -> Result<CheckpointEvery, String> {
@@ -458,14 +514,25 @@ fn inspect_command(file: &Path) -> Result<(), String> {
     }
 }
 
-/// Renders one frame file to `out`.
-fn render_file(input: &Path, out: &Path, opts: &RenderOptions) -> Result<(), String> {
+/// Renders one frame file to `out`; the PNG's text chunks say what it
+/// shows (`porosph:time`, and for a colormap `porosph:field`,
+/// `porosph:unit`, `porosph:range`). Returns the colour scale used.
+fn render_file(input: &Path, out: &Path, opts: &RenderOptions) -> Result<Option<render::ColorScale>, String> {
     let frame = porosph::io::read_frame(input).map_err(|e| match file_kind(input) {
         Ok(FileKind::Checkpoint) => not_a_frame(input),
         _ => e.to_string(),
     })?;
-    let image = render::render(&frame, opts).map_err(|e| format!("{}: {e}", input.display()))?;
-    image.write_png(out).map_err(|e| e.to_string())
+    let at = |e: render::RenderError| format!("{}: {e}", input.display());
+    let scale = render::color_scale(&frame, opts).map_err(at)?;
+    let image = render::render(&frame, opts).map_err(at)?;
+    let mut text = vec![("porosph:time".to_string(), format!("{}", frame.time))];
+    if let Some(s) = &scale {
+        text.push(("porosph:field".into(), s.field.clone()));
+        text.push(("porosph:unit".into(), s.unit.clone()));
+        text.push(("porosph:range".into(), format!("{},{}", s.range[0], s.range[1])));
+    }
+    image.write_png_with_text(out, &text).map_err(|e| e.to_string())?;
+    Ok(scale)
 }
 
 /// What `render` says of a checkpoint: what it is, and where the frames are.
@@ -497,45 +564,58 @@ fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(files)
 }
 
+/// Values kept per frame for a movie's colour range: at most this many,
+/// evenly strided, so that the percentiles of a long movie stay cheap.
+const RANGE_SAMPLES_PER_FRAME: usize = 200_000;
+
 fn movie_command(dir: &Path, mut opts: RenderOptions) -> Result<(), String> {
     let files = frame_files(dir)?;
     // One camera, particle size and colour range for the whole movie: from
-    // all frames' fluid and solid points.
-    let mut lo_hi: Option<([f32; 3], [f32; 3])> = None;
-    let mut range: Option<[f32; 2]> = None;
+    // all frames' shown points, the range's percentiles over all frames'
+    // values together.
+    let mut lo_hi: Option<render::Bounds> = None;
+    let mut values: Vec<f32> = Vec::new();
     let mut spacing = None;
     for (n, f) in files.iter().enumerate() {
         eprint!("\rporosph: scanning frame {}/{}", n + 1, files.len());
         let frame = porosph::io::read_frame(f).map_err(|e| format!("\n{e}"))?;
         let err = |e: render::RenderError| format!("\n{}: {e}", f.display());
-        if let Some((a, b)) = render::bounds(&frame, opts.walls).map_err(err)? {
+        if let Some((a, b)) = render::shown_bounds(&frame, &opts).map_err(err)? {
             lo_hi = Some(match lo_hi {
                 None => (a, b),
                 Some((lo, hi)) => ([0, 1, 2].map(|c| lo[c].min(a[c])), [0, 1, 2].map(|c| hi[c].max(b[c]))),
             });
         }
-        if let Some([a, b]) = render::value_range(&frame, opts.color).map_err(err)? {
-            range = Some(range.map_or([a, b], |[lo, hi]| [lo.min(a), hi.max(b)]));
+        if opts.range.is_none() {
+            if let Some(v) = render::field_values(&frame, &opts).map_err(err)? {
+                let stride = v.len().div_ceil(RANGE_SAMPLES_PER_FRAME).max(1);
+                values.extend(v.iter().step_by(stride));
+            }
         }
         if spacing.is_none() {
             spacing = render::estimate_spacing(&frame).map_err(err)?;
         }
     }
     eprintln!();
-    if let Some((lo, hi)) = lo_hi {
-        opts.camera = Some(Camera::aimed(lo, hi, &opts.view, opts.width, opts.height, opts.orthographic));
-    }
-    opts.range = range;
+    opts.framing = lo_hi;
+    let shared = if opts.range.is_none() { render::robust_range(opts.color, &mut values) } else { None };
+    opts.range = opts.range.or(shared);
     opts.radius = spacing.map(|s| 0.5 * s);
     let out = dir.join("render");
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: cannot create: {e}", out.display()))?;
+    let mut scale = None;
     for (n, f) in files.iter().enumerate() {
         let stem = f.file_stem().unwrap_or_default();
         let png = out.join(stem).with_extension("png");
         eprint!("\rporosph: rendering frame {}/{} -> {}", n + 1, files.len(), png.display());
-        render_file(f, &png, &opts).map_err(|e| format!("\n{e}"))?;
+        scale = render_file(f, &png, &opts).map_err(|e| format!("\n{e}"))?;
     }
     eprintln!("\nporosph: {} pictures in {}", files.len(), out.display());
+    if let Some(s) = scale {
+        let how = if shared.is_some() { " (1st-99th percentile over all frames)" } else { " (--range)" };
+        let unit = if s.unit.is_empty() { String::new() } else { format!(" {}", s.unit) };
+        eprintln!("porosph: colour range: {} {} to {}{unit}{how}", s.field, s.range[0], s.range[1]);
+    }
     Ok(())
 }
 
@@ -544,15 +624,30 @@ fn render_command(input: &Path, out: Option<PathBuf>, movie: bool, a: RenderArgs
     if width == 0 || height == 0 || width > render::MAX_SIDE || height > render::MAX_SIDE {
         return Err(format!("--width and --height must be 1 to {} pixels", render::MAX_SIDE));
     }
-    let view = CameraSpec { eye: a.eye, target: a.target, fov_deg: a.fov };
+    let view = render::CameraSpec { eye: a.eye, target: a.target, fov_deg: a.fov };
     view.check().map_err(|e| format!("--eye/--target/--fov: {e}"))?;
+    if a.range.is_some() && a.color == ColorMode::Phase {
+        return Err("--range sets the colour range of --color speed, pressure or saturation; \
+                    --color phase has none"
+            .to_string());
+    }
+    let hide = a.hide.iter().fold(Hide::default(), |h, k| Hide {
+        fluid: h.fluid || k.fluid,
+        solids: h.solids || k.solids,
+        walls: h.walls || k.walls,
+    });
     let opts = RenderOptions {
         width,
         height,
         color: a.color,
         walls: a.walls,
+        hide,
+        clip: a.clip,
+        fluid_opacity: a.fluid_opacity,
+        annotate: !a.no_annotations,
         orthographic: a.ortho,
         view,
+        range: a.range,
         ..RenderOptions::default()
     };
     if movie {
@@ -568,8 +663,11 @@ fn render_command(input: &Path, out: Option<PathBuf>, movie: bool, a: RenderArgs
         ));
     }
     let out = out.unwrap_or_else(|| input.with_extension("png"));
-    render_file(input, &out, &opts)?;
+    let scale = render_file(input, &out, &opts)?;
     eprintln!("porosph: wrote {}", out.display());
+    if let Some(s) = scale {
+        eprintln!("porosph: colour range: {}", s.describe());
+    }
     Ok(())
 }
 

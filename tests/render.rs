@@ -3,7 +3,11 @@
 //! background elsewhere; walls hidden by default; an empty frame is a
 //! background picture; `--movie` renders every frame; the camera options put
 //! their target at the image centre and look from their eye; bad input is an
-//! error naming the file, never a panic.
+//! error naming the file, never a panic. The colour bar states the range
+//! given with `--range` or the 1st-99th percentile (one range for a whole
+//! movie); `--hide` and `--clip` leave out what they name; translucent
+//! fluid shows the solid behind it; solids are outlined and a fluid of
+//! their colour is not; bad options name the option and the reason.
 
 mod common;
 
@@ -80,8 +84,10 @@ fn known_frame() -> Frame {
     }
 }
 
+/// Without the time stamp and colour bar, so that the particles fill the
+/// picture and its corners are background.
 fn opts() -> RenderOptions {
-    RenderOptions { width: 320, height: 200, ..RenderOptions::default() }
+    RenderOptions { width: 320, height: 200, annotate: false, ..RenderOptions::default() }
 }
 
 /// The pixel `p` projects to with the default camera of `frame`.
@@ -508,4 +514,307 @@ fn saturation_mode_colours_solids_dry_to_wet_and_absorbed_fluid_darker() {
     // A frame without saturations (no porous solids written) is an error.
     let e = render(&known_frame(), &RenderOptions { color: ColorMode::Saturation, ..opts() }).unwrap_err();
     assert!(e.0.contains("saturation"), "{e}");
+}
+
+/// A PNG file read back: its size, RGB bytes and `tEXt` chunks.
+struct Png {
+    width: u32,
+    height: u32,
+    rgb: Vec<u8>,
+    text: Vec<(String, String)>,
+}
+
+impl Png {
+    fn read(path: &Path) -> Png {
+        let mut dec = png::Decoder::new(std::fs::File::open(path).unwrap()).read_info().unwrap();
+        let mut rgb = vec![0; dec.output_buffer_size()];
+        dec.next_frame(&mut rgb).unwrap();
+        let info = dec.info();
+        let text = info.uncompressed_latin1_text.iter().map(|t| (t.keyword.clone(), t.text.clone())).collect();
+        Png { width: info.width, height: info.height, rgb, text }
+    }
+
+    fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = 3 * (y * self.width + x) as usize;
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    fn pixels(&self) -> impl Iterator<Item = [u8; 3]> + '_ {
+        self.rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]])
+    }
+
+    fn text(&self, key: &str) -> &str {
+        self.text
+            .iter()
+            .find(|t| t.0 == key)
+            .map(|t| t.1.as_str())
+            .unwrap_or_else(|| panic!("no {key} in {:?}", self.text))
+    }
+
+    /// The `porosph:range` the picture states.
+    fn range(&self) -> [f32; 2] {
+        let v: Vec<f32> = self.text("porosph:range").split(',').map(|x| x.parse().unwrap()).collect();
+        [v[0], v[1]]
+    }
+}
+
+fn srgb8(c: [f32; 3]) -> [u8; 3] {
+    c.map(|c| {
+        let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+        (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    })
+}
+
+/// Runs `porosph render ARGS` and checks that it succeeded; its stderr.
+fn render_ok(args: &[&str]) -> String {
+    let out = porosph(args);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{args:?}: {err}");
+    err
+}
+
+#[test]
+fn colour_bar_range_is_the_range_given() {
+    let dir = TempDir::new("render-range");
+    let frame = dir.path("f.vtkhdf");
+    write_frame(&frame, &known_frame()).unwrap();
+    let png = dir.path("f.png");
+    let err = render_ok(&[
+        "render",
+        s(&frame),
+        "-o",
+        s(&png),
+        "--color",
+        "pressure",
+        "--range",
+        "100,1500",
+        "--width",
+        "640",
+        "--height",
+        "360",
+    ]);
+    assert!(err.contains("colour range: pressure 100 to 1500 Pa (--range)"), "{err}");
+    let img = Png::read(&png);
+    assert_eq!(img.range(), [100.0, 1500.0]);
+    assert_eq!(
+        (img.text("porosph:field"), img.text("porosph:unit"), img.text("porosph:time")),
+        ("pressure", "Pa", "0.5")
+    );
+    // The bar in the panel at the right: a column running from the
+    // colormap's top (at the range's top) down to its bottom.
+    let x0 = img.width - porosph::render::panel_width(img.width, img.height);
+    let (top, bottom) = (srgb8(porosph::render::colormap(1.0)), srgb8(porosph::render::colormap(0.0)));
+    let bar_x = (x0..img.width)
+        .find(|&x| {
+            (0..img.height).any(|y| img.pixel(x, y) == top) && (0..img.height).any(|y| img.pixel(x, y) == bottom)
+        })
+        .expect("a colour bar column");
+    let ys = |c| (0..img.height).filter(|&y| img.pixel(bar_x, y) == c).collect::<Vec<_>>();
+    assert!(ys(top)[0] < ys(bottom)[0], "the top of the bar is the top of the range");
+    // The library states the same scale.
+    let o = RenderOptions { color: ColorMode::Pressure, range: Some([100.0, 1500.0]), ..opts() };
+    let scale = porosph::render::color_scale(&known_frame(), &o).unwrap().unwrap();
+    assert_eq!((scale.range, scale.unit.as_str(), scale.given), ([100.0, 1500.0], "Pa", true));
+}
+
+#[test]
+fn default_range_is_the_percentiles_and_ignores_an_outlier() {
+    let dir = TempDir::new("render-percentile");
+    // Pressures 0..n-1 (n = 2100 points), and one particle at 1e7 Pa.
+    let mut f = known_frame();
+    for a in &mut f.arrays {
+        if let ("pressure", ArrayData::F32(p)) = (a.name.as_str(), &mut a.data) {
+            p[5] = 1e7;
+        }
+    }
+    let frame = dir.path("f.vtkhdf");
+    write_frame(&frame, &f).unwrap();
+    let png = dir.path("f.png");
+    render_ok(&["render", s(&frame), "-o", s(&png), "--color", "pressure"]);
+    // The drawn points are the 2000 fluid and solid ones (walls hidden):
+    // pressures 0..1999 but 5, and 1e7; nearest ranks 20 and 1979 of 2000.
+    let [lo, hi] = Png::read(&png).range();
+    assert_eq!((lo, hi), (21.0, 1980.0), "1st and 99th percentile");
+    // A movie shares one range: the percentiles over all its frames.
+    let run = dir.path("run");
+    std::fs::create_dir_all(run.join("frames")).unwrap();
+    let mut g = f.clone();
+    for a in &mut g.arrays {
+        if let ("pressure", ArrayData::F32(p)) = (a.name.as_str(), &mut a.data) {
+            p.iter_mut().for_each(|v| *v += 10_000.0);
+        }
+    }
+    write_frame(&run.join("frames/frame_00000.vtkhdf"), &f).unwrap();
+    write_frame(&run.join("frames/frame_00001.vtkhdf"), &g).unwrap();
+    let err = render_ok(&["render", s(&run), "--movie", "--color", "pressure", "--width", "320", "--height", "180"]);
+    let mut all: Vec<f32> = Vec::new();
+    for fr in [&f, &g] {
+        let o = RenderOptions { color: ColorMode::Pressure, ..opts() };
+        all.extend(porosph::render::field_values(fr, &o).unwrap().unwrap());
+    }
+    let want = porosph::render::robust_range(ColorMode::Pressure, &mut all).unwrap();
+    for i in 0..2 {
+        assert_eq!(Png::read(&run.join(format!("render/frame_{i:05}.png"))).range(), want, "frame {i}");
+    }
+    assert!(err.contains("percentile over all frames"), "{err}");
+    assert!(want[0] < 1000.0 && want[1] > 10_000.0 && want[1] < 12_000.0, "{want:?}");
+}
+
+/// Renders the known frame through the binary with `extra` options, the
+/// time stamp and colour bar left out; the picture read back.
+fn cli_render(dir: &TempDir, name: &str, extra: &[&str]) -> Png {
+    let frame = dir.path("known.vtkhdf");
+    if !frame.exists() {
+        write_frame(&frame, &known_frame()).unwrap();
+    }
+    let png = dir.path(&format!("{name}.png"));
+    let mut args = vec!["render", s(&frame), "-o", s(&png), "--width", "320", "--height", "200", "--no-annotations"];
+    args.extend(extra);
+    render_ok(&args);
+    Png::read(&png)
+}
+
+#[test]
+fn hide_leaves_out_the_kinds_named() {
+    let dir = TempDir::new("render-hide");
+    let all = cli_render(&dir, "all", &[]);
+    assert!(all.pixels().any(blueish) && all.pixels().any(redish));
+    let no_fluid = cli_render(&dir, "no_fluid", &["--hide", "fluid"]);
+    assert!(!no_fluid.pixels().any(blueish), "fluid pixels with --hide fluid");
+    assert!(no_fluid.pixels().any(redish));
+    let no_solids = cli_render(&dir, "no_solids", &["--hide", "solids"]);
+    assert!(no_solids.pixels().any(blueish) && !no_solids.pixels().any(redish));
+    // Repeated or a list: nothing left, a background picture.
+    let bg = background(&opts());
+    for args in [vec!["--hide", "fluid", "--hide", "solids"], vec!["--hide", "fluid,solids,walls", "--walls"]] {
+        let none = cli_render(&dir, "none", &args);
+        assert!(none.pixels().all(|c| c == bg), "{args:?}");
+    }
+}
+
+#[test]
+fn clip_leaves_out_the_particles_past_the_plane() {
+    let dir = TempDir::new("render-clip");
+    let f = known_frame();
+    let (fx, fy) = pixel_of(&f, &opts(), FLUID_AT);
+    // Fluid at x = -0.6, solid at +0.6: x<0 keeps the fluid only, where it
+    // was (the camera does not move).
+    let left = cli_render(&dir, "left", &["--clip", "x<0"]);
+    assert!(!left.pixels().any(redish), "solid pixels past x<0");
+    assert!(blueish(left.pixel(fx, fy)), "{:?}", left.pixel(fx, fy));
+    let right = cli_render(&dir, "right", &["--clip", "x>0"]);
+    assert!(!right.pixels().any(blueish) && right.pixels().any(redish));
+    // Half of each blob (x within 0.135 of its centre): fewer pixels.
+    let blue = |p: &Png| p.pixels().filter(|&c| blueish(c)).count();
+    let half = cli_render(&dir, "half", &["--clip", "x<-0.6", "--clip", "x>-1"]);
+    let full = cli_render(&dir, "full", &[]);
+    let (h, w) = (blue(&half), blue(&full));
+    assert!(h > w / 4 && h < 3 * w / 4, "{h} of {w} fluid pixels with half the fluid");
+    assert!(!half.pixels().any(redish));
+}
+
+#[test]
+fn translucent_fluid_shows_the_solid_behind_it() {
+    // The fluid blob moved in front of the solid blob, seen straight along
+    // -z through a column of particles of both.
+    let mut f = known_frame();
+    for p in &mut f.points[..1000] {
+        *p = [p[0] + 1.2, p[1], p[2] + 0.6];
+    }
+    let at = [SOLID_AT[0] + 0.015, SOLID_AT[1] + 0.015, SOLID_AT[2]];
+    let view = CameraSpec { eye: Some([at[0], at[1], 3.0]), target: Some(at), fov_deg: None };
+    let o = RenderOptions { view, ..opts() };
+    let (cx, cy) = (o.width / 2, o.height / 2);
+    let opaque = render(&f, &o).unwrap().pixel(cx, cy);
+    let veiled = render(&f, &RenderOptions { fluid_opacity: 0.3, ..o.clone() }).unwrap().pixel(cx, cy);
+    assert!(blueish(opaque), "opaque fluid in front: {opaque:?}");
+    assert!(veiled[0] > opaque[0] + 60 && veiled[0] > veiled[2], "solid red through 30 % fluid: {veiled:?}");
+    // Invisible fluid: as with the fluid hidden (the camera is fixed).
+    let hide = porosph::render::Hide { fluid: true, ..Default::default() };
+    let gone = render(&f, &RenderOptions { fluid_opacity: 0.0, ..o.clone() }).unwrap();
+    assert_eq!(gone, render(&f, &RenderOptions { hide, ..o.clone() }).unwrap());
+    let e = render(&f, &RenderOptions { fluid_opacity: 1.5, ..opts() }).unwrap_err();
+    assert!(e.0.contains("fluid opacity"), "{e}");
+}
+
+#[test]
+fn solids_are_outlined_and_a_fluid_of_their_colour_is_not() {
+    // Both blobs in the dry-sponge colour, as a 50/50 red/green mixture
+    // nearly is: the solid has a dark outline, the fluid none.
+    let mut f = known_frame();
+    for a in &mut f.arrays {
+        if let ("color", ArrayData::F32(c)) = (a.name.as_str(), &mut a.data) {
+            c.chunks_exact_mut(3).for_each(|c| c.copy_from_slice(&[0.8, 0.62, 0.38]));
+        }
+    }
+    let o = opts();
+    let img = render(&f, &o).unwrap();
+    let dark = |p: [f32; 3]| {
+        let (x, y) = pixel_of(&f, &o, p);
+        let mut n = 0;
+        for py in y.saturating_sub(40)..(y + 40).min(o.height) {
+            for px in x.saturating_sub(40)..(x + 40).min(o.width) {
+                n += usize::from(img.pixel(px, py).iter().all(|&c| c < 60));
+            }
+        }
+        n
+    };
+    let (solid, fluid) = (dark(SOLID_AT), dark(FLUID_AT));
+    assert!(solid > 100 && fluid == 0, "dark pixels: solid {solid}, fluid {fluid}");
+}
+
+#[test]
+fn time_stamp_and_colour_bar_are_drawn() {
+    let f = known_frame();
+    let o = RenderOptions { width: 640, height: 360, color: ColorMode::Speed, ..opts() };
+    let plain = render(&f, &o).unwrap();
+    let annotated = render(&f, &RenderOptions { annotate: true, ..o.clone() }).unwrap();
+    // The time stamp at the top left: dark text where there was none.
+    let ink = (0..30)
+        .flat_map(|y| (0..120).map(move |x| (x, y)))
+        .filter(|&(x, y)| annotated.pixel(x, y) != plain.pixel(x, y) && annotated.pixel(x, y).iter().all(|&c| c < 128))
+        .count();
+    assert!(ink > 20, "{ink} pixels of text");
+    // The colour bar's panel at the right: the colormap's ends.
+    let x0 = 640 - porosph::render::panel_width(640, 360);
+    let panel: Vec<[u8; 3]> =
+        (0..360).flat_map(|y| (x0..640).map(move |x| (x, y))).map(|(x, y)| annotated.pixel(x, y)).collect();
+    for t in [0.0, 1.0] {
+        assert!(panel.contains(&srgb8(porosph::render::colormap(t))), "colormap({t}) in the bar");
+    }
+    // The phase colours have no bar; thumbnails have no annotations.
+    let phase = render(&f, &RenderOptions { annotate: true, color: ColorMode::Phase, ..o.clone() }).unwrap();
+    assert!(!phase.rgb.chunks(3).any(|c| c == srgb8(porosph::render::colormap(1.0))));
+    let small = RenderOptions { width: 200, height: 100, ..o.clone() };
+    assert_eq!(render(&f, &RenderOptions { annotate: true, ..small.clone() }).unwrap(), render(&f, &small).unwrap());
+}
+
+#[test]
+fn bad_render_options_name_the_option_and_the_reason() {
+    let dir = TempDir::new("render-bad-options");
+    let frame = dir.path("f.vtkhdf");
+    write_frame(&frame, &known_frame()).unwrap();
+    let png = dir.path("x.png");
+    for (args, want) in [
+        (vec!["--color", "pressure", "--range", "5,1"], ["--range", "MIN must be less than MAX"]),
+        (vec!["--color", "pressure", "--range", "5"], ["--range", "two numbers MIN,MAX"]),
+        (vec!["--color", "pressure", "--range", "0,inf"], ["--range", "finite"]),
+        (vec!["--range", "0,1"], ["--range", "--color phase has none"]),
+        (vec!["--clip", "q<1"], ["--clip", "the axis must be x, y or z"]),
+        (vec!["--clip", "x=1"], ["--clip", "no < or >"]),
+        (vec!["--clip", "x<abc"], ["--clip", "not a finite number"]),
+        (vec!["--hide", "water"], ["--hide", "not a particle kind"]),
+        (vec!["--fluid-opacity", "2"], ["--fluid-opacity", "0 (invisible) to 1 (opaque)"]),
+    ] {
+        let mut all = vec!["render", s(&frame), "-o", s(&png)];
+        all.extend(&args);
+        let out = porosph(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        for w in want {
+            assert!(err.contains(w), "{args:?}: {w:?} not in {err}");
+        }
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+    assert!(!png.exists());
 }

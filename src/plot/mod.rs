@@ -67,7 +67,7 @@ impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for PlotE
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// DejaVu Sans, printable ASCII and a few symbols (assets/fonts/LICENSE-DejaVu.txt).
-const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
+pub(crate) const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
 const FAMILY: &str = "sans-serif";
 
 fn register_font() -> Result<(), PlotError> {

@@ -13,6 +13,20 @@
 //! 3. shade each pixel from the sphere normal of the point that won it.
 //!
 //! Colours are linear RGB throughout; pixels are encoded to sRGB at the end.
+//! Kinds can be hidden and the points past clip planes left out
+//! ([`select`]); fluid can be translucent (its nearest surface blended over
+//! what is behind, like the walls); solid bodies are outlined, so a fluid
+//! mixture of the same colour does not read as a solid. The picture states
+//! the simulated time and, for a colormap, a colour bar with the field, its
+//! unit and range ([`scale`], [`annotate`]).
+
+mod annotate;
+pub mod scale;
+pub mod select;
+
+pub use annotate::{panel_width, MIN_ANNOTATED};
+pub use scale::{robust_range, ColorScale};
+pub use select::{Clip, Hide};
 
 use crate::io::{ArrayData, Frame, IoError};
 use crate::run::kind;
@@ -28,15 +42,16 @@ pub enum ColorMode {
     #[default]
     Phase,
     /// `|velocity|` through the colormap, over [`RenderOptions::range`]
-    /// (default: 0 to the largest speed of the fluid and solid points).
+    /// (default: 0 to the 99th percentile of the drawn points' speeds,
+    /// [`robust_range`]).
     Speed,
     /// `pressure` through the colormap, over [`RenderOptions::range`]
-    /// (default: the smallest to the largest pressure of the fluid and
-    /// solid points).
+    /// (default: the 1st to the 99th percentile of the drawn points'
+    /// pressures).
     Pressure,
     /// Porous solids by their `saturation` (sum_k phi_sk) from dry to wet
     /// through [`wetness`], over [`RenderOptions::range`] (default: 0 to
-    /// the largest saturation of the solid points); fluid by its phase
+    /// the 99th percentile of the drawn solid points); fluid by its phase
     /// mixture at full brightness where it is outside the solids (alpha)
     /// and darker where it is absorbed (beta, [`INNER_DARKEN`]).
     Saturation,
@@ -243,19 +258,33 @@ pub struct RenderOptions {
     pub color: ColorMode,
     /// Draw the wall particles (faintly); hidden by default.
     pub walls: bool,
+    /// Kinds left out (`hide.walls` wins over `walls`).
+    pub hide: Hide,
+    /// Clip planes: only the points on the kept side of every one are
+    /// drawn (the camera still frames the unclipped points).
+    pub clip: Vec<Clip>,
+    /// Opacity of the fluid, 0 to 1: below 1 its nearest surface is
+    /// blended over the solids and walls behind it.
+    pub fluid_opacity: f32,
+    /// Write the simulated time and, for a colormap, a colour bar (images
+    /// of at least [`MIN_ANNOTATED`] pixels).
+    pub annotate: bool,
     /// Orthographic rather than perspective camera.
     pub orthographic: bool,
     /// Where the camera is and looks, in part or not at all: the rest is
     /// the default camera's ([`Camera::aimed`]).
     pub view: CameraSpec,
-    /// The whole camera, overriding `view` and `orthographic`; `None`:
-    /// [`Camera::aimed`] at `view`, framing the fluid and solid points (and
-    /// the walls, if drawn).
+    /// The whole camera, overriding `view`, `orthographic` and `framing`;
+    /// `None`: [`Camera::aimed`] at `view`, framing `framing`.
     pub camera: Option<Camera>,
+    /// The box the default camera frames; `None`: the shown kinds' points
+    /// ([`shown_bounds`]; a movie frames the union over its frames).
+    pub framing: Option<Bounds>,
     /// Particle radius, m; `None`: half the typical nearest-neighbour
     /// distance ([`estimate_spacing`]).
     pub radius: Option<f32>,
-    /// Value range of the colormap (speed, pressure); `None`: from the frame.
+    /// Value range of the colormap (speed, pressure, saturation), MIN < MAX;
+    /// `None`: [`robust_range`] of the drawn points' values.
     pub range: Option<[f32; 2]>,
     /// Background colour, linear RGB.
     pub background: [f32; 3],
@@ -268,9 +297,14 @@ impl Default for RenderOptions {
             height: 720,
             color: ColorMode::Phase,
             walls: false,
+            hide: Hide::default(),
+            clip: Vec::new(),
+            fluid_opacity: 1.0,
+            annotate: true,
             orthographic: false,
             view: CameraSpec::default(),
             camera: None,
+            framing: None,
             radius: None,
             range: None,
             background: [0.9, 0.9, 0.9],
@@ -314,12 +348,21 @@ impl Image {
 
     /// The image as PNG bytes (fast compression).
     pub fn encode_png(&self) -> Result<Vec<u8>, RenderError> {
+        self.encode_png_with_text(&[])
+    }
+
+    /// The image as PNG bytes with text chunks (`tEXt`, keyword and
+    /// Latin-1 text) such as what a render shows.
+    pub fn encode_png_with_text(&self, text: &[(String, String)]) -> Result<Vec<u8>, RenderError> {
         let mut out = Vec::new();
         let mut enc = png::Encoder::new(&mut out, self.width, self.height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         enc.set_compression(png::Compression::Fast);
         enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        for (k, v) in text {
+            enc.add_text_chunk(k.clone(), v.clone()).map_err(|e| RenderError(format!("PNG text {k:?}: {e}")))?;
+        }
         let mut w = enc.write_header().map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
         w.write_image_data(&self.rgb).map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
         w.finish().map_err(|e| RenderError(format!("PNG encoding: {e}")))?;
@@ -329,7 +372,13 @@ impl Image {
     /// Writes the image as a PNG file (to a temporary name, synced, then
     /// renamed: [`crate::io::atomic::write_bytes`]).
     pub fn write_png(&self, path: &Path) -> Result<(), IoError> {
-        let bytes = self.encode_png().map_err(|e| IoError::new(path, e))?;
+        self.write_png_with_text(path, &[])
+    }
+
+    /// Writes the image as a PNG file with text chunks
+    /// ([`Image::encode_png_with_text`]).
+    pub fn write_png_with_text(&self, path: &Path, text: &[(String, String)]) -> Result<(), IoError> {
+        let bytes = self.encode_png_with_text(text).map_err(|e| IoError::new(path, e))?;
         crate::io::atomic::write_bytes(path, &bytes)
     }
 }
@@ -386,8 +435,8 @@ fn finite(p: [f32; 3]) -> bool {
     p.iter().all(|c| c.is_finite())
 }
 
-/// The points the default camera, spacing and colour range are taken from:
-/// finite fluid and solid points.
+/// The points the particle size is taken from: finite fluid and solid
+/// points.
 fn framed_points(frame: &Frame) -> Result<Vec<usize>, RenderError> {
     let k = kinds(frame)?;
     Ok((0..frame.points.len()).filter(|&i| !is_wall(k, i) && finite(frame.points[i])).collect())
@@ -398,7 +447,7 @@ pub type Bounds = ([f32; 3], [f32; 3]);
 
 /// Axis-aligned bounds of the finite fluid and solid points, and of the
 /// wall points too if `walls` (`None` if there are none): what the default
-/// camera frames.
+/// camera frames when nothing is hidden ([`shown_bounds`]).
 pub fn bounds(frame: &Frame, walls: bool) -> Result<Option<Bounds>, RenderError> {
     let idx = if walls {
         (0..frame.points.len()).filter(|&i| finite(frame.points[i])).collect()
@@ -485,23 +534,78 @@ fn scalars(frame: &Frame, mode: ColorMode) -> Result<Option<Vec<f32>>, RenderErr
     }
 }
 
-/// The default colormap range of `mode` for the frame: speed 0 to the
-/// largest speed, pressure smallest to largest, over the fluid and solid
-/// points (`None` for `Phase` or without finite values).
-pub fn value_range(frame: &Frame, mode: ColorMode) -> Result<Option<[f32; 2]>, RenderError> {
-    let Some(s) = scalars(frame, mode)? else { return Ok(None) };
-    let mut idx = framed_points(frame)?;
-    if mode == ColorMode::Saturation {
-        // Only the solids carry a saturation; 0 to the wettest.
-        let k = kinds(frame)?;
-        idx.retain(|&i| k.is_some_and(|k| k[i] == kind::SOLID));
+/// Whether point `i` is of a kind `opts` shows (clip planes aside).
+fn kind_shown(k: Option<&[u8]>, i: usize, opts: &RenderOptions) -> bool {
+    match k.map_or(kind::FLUID, |k| k[i]) {
+        kind::WALL => opts.walls && !opts.hide.walls,
+        kind::SOLID => !opts.hide.solids,
+        _ => !opts.hide.fluid,
     }
-    let vals = idx.iter().map(|&i| s[i]).filter(|v| v.is_finite());
-    let r = vals.fold(None, |acc: Option<[f32; 2]>, v| match acc {
-        None => Some([v, v]),
-        Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
-    });
-    Ok(r.map(|[lo, hi]| if matches!(mode, ColorMode::Speed | ColorMode::Saturation) { [0.0, hi] } else { [lo, hi] }))
+}
+
+/// Whether point `i` is drawn: finite, of a shown kind, on the kept side
+/// of every clip plane.
+fn drawn(frame: &Frame, k: Option<&[u8]>, i: usize, opts: &RenderOptions) -> bool {
+    let p = frame.points[i];
+    finite(p) && kind_shown(k, i, opts) && opts.clip.iter().all(|c| c.keeps(p))
+}
+
+/// Axis-aligned bounds of the finite points of the kinds `opts` shows
+/// (clip planes aside, so that a clip does not move the camera): what the
+/// default camera frames (`None` if there are none).
+pub fn shown_bounds(frame: &Frame, opts: &RenderOptions) -> Result<Option<Bounds>, RenderError> {
+    let k = kinds(frame)?;
+    let idx: Vec<usize> =
+        (0..frame.points.len()).filter(|&i| finite(frame.points[i]) && kind_shown(k, i, opts)).collect();
+    Ok(bounds_of(frame, &idx))
+}
+
+/// The finite values the colour scale of `opts.color` is taken from: of
+/// the drawn fluid and solid points (the solids only for saturation);
+/// `None` for `Phase`.
+pub fn field_values(frame: &Frame, opts: &RenderOptions) -> Result<Option<Vec<f32>>, RenderError> {
+    let Some(s) = scalars(frame, opts.color)? else { return Ok(None) };
+    let k = kinds(frame)?;
+    let solids_only = opts.color == ColorMode::Saturation;
+    let keep = |i: usize| {
+        let ki = k.map_or(kind::FLUID, |k| k[i]);
+        ki != kind::WALL && (!solids_only || ki == kind::SOLID) && drawn(frame, k, i, opts)
+    };
+    Ok(Some((0..frame.points.len()).filter(|&i| keep(i)).map(|i| s[i]).filter(|v| v.is_finite()).collect()))
+}
+
+/// The default colormap range of `mode` for the frame, everything shown:
+/// [`robust_range`] of the fluid and solid points' values (`None` for
+/// `Phase` or without finite values).
+pub fn value_range(frame: &Frame, mode: ColorMode) -> Result<Option<[f32; 2]>, RenderError> {
+    let opts = RenderOptions { color: mode, ..RenderOptions::default() };
+    Ok(field_values(frame, &opts)?.and_then(|mut v| robust_range(mode, &mut v)))
+}
+
+/// The colour scale a render of `frame` with `opts` uses: the field, its
+/// unit (the frame's, where it states one) and the range (`opts.range`,
+/// checked, or [`robust_range`] of [`field_values`]; 0 to 1 without
+/// values); `None` for `Phase`.
+pub fn color_scale(frame: &Frame, opts: &RenderOptions) -> Result<Option<ColorScale>, RenderError> {
+    let array = match opts.color {
+        ColorMode::Phase => return Ok(None),
+        ColorMode::Speed => "velocity",
+        ColorMode::Pressure => "pressure",
+        ColorMode::Saturation => "saturation",
+    };
+    let unit = frame.arrays.iter().find(|a| a.name == array).map(|a| a.unit.as_str());
+    let (field, unit) = scale::field_of(opts.color, unit);
+    let (range, given) = match opts.range {
+        Some(r) => {
+            scale::check_range(r)?;
+            (r, true)
+        }
+        None => {
+            let r = field_values(frame, opts)?.and_then(|mut v| robust_range(opts.color, &mut v));
+            (r.unwrap_or([0.0, 1.0]), false)
+        }
+    };
+    Ok(Some(ColorScale { field, unit, range, given }))
 }
 
 /// Viridis, 9 control points (sRGB).
@@ -581,6 +685,25 @@ const WALL_COLOR: [f32; 3] = [0.55, 0.55, 0.55];
 /// Opacity of the nearest wall particle over what is behind it.
 const WALL_ALPHA: f32 = 0.3;
 
+/// Colour of the outline drawn around solid bodies (linear RGB).
+const OUTLINE: [f32; 3] = [0.02, 0.02, 0.02];
+/// The outline follows the solid particles' discs grown by this factor,
+/// which closes the gaps between neighbouring particles (at most sqrt(2)
+/// radii from a centre in a lattice): it runs round a body, not round
+/// every particle.
+const OUTLINE_GROW: f32 = 1.5;
+
+/// Which buffer a splat is drawn into.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Layer {
+    /// Opaque: solids, and the fluid unless it is translucent.
+    Opaque,
+    /// Wall particles, blended with [`WALL_ALPHA`].
+    Wall,
+    /// Translucent fluid, blended with [`RenderOptions::fluid_opacity`].
+    Fluid,
+}
+
 /// One projected point: a disc on the screen.
 #[derive(Clone, Copy)]
 struct Splat {
@@ -592,8 +715,9 @@ struct Splat {
     depth: f32,
     /// Sphere radius, m.
     world_r: f32,
-    /// A wall particle (drawn translucent, in its own depth buffer).
-    wall: bool,
+    layer: Layer,
+    /// A solid particle (outlined where its body ends).
+    solid: bool,
     color: [f32; 3],
 }
 
@@ -607,12 +731,44 @@ fn ordered_bits(f: f32) -> u32 {
     }
 }
 
-/// Renders `frame` as an image.
+/// Renders `frame` as an image: the particles, and with
+/// [`RenderOptions::annotate`] the simulated time and the colour bar (in a
+/// panel at the right, [`panel_width`]).
 pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError> {
     let (w, h) = (opts.width, opts.height);
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(RenderError(format!("image size {w} x {h}: each side must be 1 to {MAX_SIDE} pixels")));
     }
+    let a = opts.fluid_opacity;
+    if !(0.0..=1.0).contains(&a) {
+        return Err(RenderError(format!("fluid opacity {a}: must be 0 (invisible) to 1 (opaque)")));
+    }
+    let scale = color_scale(frame, opts)?;
+    let annotate = opts.annotate && w >= MIN_ANNOTATED.0 && h >= MIN_ANNOTATED.1;
+    let scene_w = if annotate && scale.is_some() { w - panel_width(w, h) } else { w };
+    let scene = render_scene(frame, opts, scene_w, scale.as_ref().map(|s| s.range))?;
+    let bg = opts.background.map(linear_to_srgb8);
+    let mut rgb = if scene_w == w {
+        scene
+    } else {
+        let mut rgb: Vec<u8> = bg.iter().copied().cycle().take(3 * w as usize * h as usize).collect();
+        for (dst, src) in rgb.chunks_exact_mut(3 * w as usize).zip(scene.chunks_exact(3 * scene_w as usize)) {
+            dst[..src.len()].copy_from_slice(src);
+        }
+        rgb
+    };
+    if annotate {
+        let ramp: annotate::Ramp = if opts.color == ColorMode::Saturation { &wetness } else { &colormap };
+        annotate::draw(&mut rgb, (w, h), scene_w, frame.time, scale.as_ref().map(|s| (s, ramp)), bg)?;
+    }
+    Ok(Image { width: w, height: h, rgb })
+}
+
+/// The particles of `frame` on an image `w` pixels wide and
+/// `opts.height` high, coloured over `range`: sRGB bytes, rows top to
+/// bottom.
+fn render_scene(frame: &Frame, opts: &RenderOptions, w: u32, range: Option<[f32; 2]>) -> Result<Vec<u8>, RenderError> {
+    let h = opts.height;
     let n = frame.points.len();
     if n >= u32::MAX as usize {
         return Err(RenderError(format!("{n} points: at most {} can be rendered", u32::MAX - 1)));
@@ -643,7 +799,11 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
         Some(c) => c,
         None => {
             opts.view.check()?;
-            let (lo, hi) = bounds(frame, opts.walls)?.unwrap_or(([-0.5; 3], [0.5; 3]));
+            let framing = match opts.framing {
+                Some(b) => Some(b),
+                None => shown_bounds(frame, opts)?,
+            };
+            let (lo, hi) = framing.unwrap_or(([-0.5; 3], [0.5; 3]));
             Camera::aimed(lo, hi, &opts.view, w, h, opts.orthographic)
         }
     };
@@ -655,13 +815,10 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
             None => bounds_of(frame, &framed).map_or(0.01, |(lo, hi)| (0.02 * dist(lo, hi)).max(1e-3)),
         },
     };
-    let range = match (values.is_some(), opts.range) {
-        (false, _) => [0.0, 1.0],
-        (true, Some(r)) => r,
-        (true, None) => value_range(frame, opts.color)?.unwrap_or([0.0, 1.0]),
-    };
+    let range = range.unwrap_or([0.0, 1.0]);
     let span = if range[1] > range[0] { range[1] - range[0] } else { 1.0 };
     let bg = opts.background;
+    let translucent = opts.fluid_opacity < 1.0;
 
     // Pass 1: project.
     let splats: Vec<Splat> = (0..n)
@@ -669,8 +826,16 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
         .map(|i| {
             let p = frame.points[i];
             let wall = is_wall(k, i);
-            let hidden = Splat { x: 0.0, y: 0.0, r: 0.0, depth: 0.0, world_r: 0.0, wall, color: [0.0; 3] };
-            if (wall && !opts.walls) || !finite(p) {
+            let solid = k.is_some_and(|k| k[i] == kind::SOLID);
+            let layer = if wall {
+                Layer::Wall
+            } else if !solid && translucent {
+                Layer::Fluid
+            } else {
+                Layer::Opaque
+            };
+            let hidden = Splat { x: 0.0, y: 0.0, r: 0.0, depth: 0.0, world_r: 0.0, layer, solid, color: [0.0; 3] };
+            if !drawn(frame, k, i, opts) || (layer == Layer::Fluid && opts.fluid_opacity <= 0.0) {
                 return hidden;
             }
             let Some([x, y, depth]) = camera.project(p, w, h) else { return hidden };
@@ -678,7 +843,6 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
             if !(r.is_finite() && x + r >= 0.0 && y + r >= 0.0 && x - r <= w as f32 && y - r <= h as f32) {
                 return hidden;
             }
-            let solid = k.is_some_and(|k| k[i] == kind::SOLID);
             let color = if wall {
                 WALL_COLOR
             } else if opts.color == ColorMode::Saturation {
@@ -702,14 +866,40 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
                 DEFAULT_FLUID
             };
             // At least about one pixel, so far particles do not vanish.
-            Splat { x, y, r: r.max(0.7), depth, world_r: radius, wall, color }
+            Splat { x, y, r: r.max(0.7), depth, world_r: radius, layer, solid, color }
         })
         .collect();
 
-    // Pass 2: rasterise into the depth buffer; key = (depth, index).
+    // Pass 2: rasterise into the depth buffers; key = (depth, index).
     let npix = w as usize * h as usize;
-    let zbuf: Vec<AtomicU64> = (0..npix).map(|_| AtomicU64::new(u64::MAX)).collect();
-    let wbuf: Vec<AtomicU64> = (0..if opts.walls { npix } else { 0 }).map(|_| AtomicU64::new(u64::MAX)).collect();
+    let buffer =
+        |used: bool| -> Vec<AtomicU64> { (0..if used { npix } else { 0 }).map(|_| AtomicU64::new(u64::MAX)).collect() };
+    let zbuf = buffer(true);
+    let wbuf = buffer(opts.walls && !opts.hide.walls);
+    let fbuf = buffer(translucent);
+    // The solids' silhouette: their discs grown by OUTLINE_GROW, keyed by
+    // the centre's depth.
+    let sbuf = buffer(true);
+    splats.par_iter().enumerate().with_min_len(1024).for_each(|(i, s)| {
+        if s.r <= 0.0 || !s.solid {
+            return;
+        }
+        let r = OUTLINE_GROW * s.r;
+        let key = (u64::from(ordered_bits(s.depth)) << 32) | i as u64;
+        let x0 = (s.x - r).floor().max(0.0) as u32;
+        let x1 = ((s.x + r).ceil() as u32).min(w);
+        let y0 = (s.y - r).floor().max(0.0) as u32;
+        let y1 = ((s.y + r).ceil() as u32).min(h);
+        for py in y0..y1 {
+            let dy = py as f32 + 0.5 - s.y;
+            for px in x0..x1 {
+                let dx = px as f32 + 0.5 - s.x;
+                if dx * dx + dy * dy <= r * r {
+                    sbuf[py as usize * w as usize + px as usize].fetch_min(key, Ordering::Relaxed);
+                }
+            }
+        }
+    });
     splats.par_iter().enumerate().with_min_len(1024).for_each(|(i, s)| {
         if s.r <= 0.0 {
             return;
@@ -719,7 +909,11 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
         let y0 = (s.y - s.r).floor().max(0.0) as u32;
         let y1 = ((s.y + s.r).ceil() as u32).min(h);
         let inv_r2 = 1.0 / (s.r * s.r);
-        let buf = if s.wall { &wbuf } else { &zbuf };
+        let buf = match s.layer {
+            Layer::Opaque => &zbuf,
+            Layer::Wall => &wbuf,
+            Layer::Fluid => &fbuf,
+        };
         for py in y0..y1 {
             let dy = py as f32 + 0.5 - s.y;
             let row = py as usize * w as usize;
@@ -745,9 +939,10 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
         let m = dot(v, v).sqrt();
         v.map(|c| c / m)
     };
+    let splat = |key: u64| &splats[(key & 0xffff_ffff) as usize];
     // Lambert-shaded colour of splat `key` at pixel (px, py).
     let shade = |key: u64, px: usize, py: usize| -> [f32; 3] {
-        let s = &splats[(key & 0xffff_ffff) as usize];
+        let s = splat(key);
         let nx = (px as f32 + 0.5 - s.x) / s.r;
         let ny = -(py as f32 + 0.5 - s.y) / s.r;
         let nz = (1.0 - nx * nx - ny * ny).max(0.0).sqrt();
@@ -755,17 +950,67 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
         let lambert = (nx * l[0] + ny * l[1] + nz * l[2]).max(0.0);
         s.color.map(|c| c * (0.3 + 0.7 * lambert))
     };
+    // Outline width, pixels.
+    let t = (h / 360).max(1) as usize;
+    // Whether pixel (px, py), where the solids' silhouette is, lies on its
+    // edge: no opaque point but a solid is nearer than the silhouette's
+    // particle there or about half a particle away, and a pixel `t` away
+    // is outside the silhouette or on a solid well behind (another body).
+    let edge = |px: usize, py: usize| -> bool {
+        let (wu, hu) = (w as usize, h as usize);
+        let sk = sbuf[py * wu + px].load(Ordering::Relaxed);
+        if sk == u64::MAX {
+            return false;
+        }
+        let s = splat(sk);
+        // Hidden by a nearer point at the pixel, or around it (the pixel
+        // may be in a gap between the nearer particles).
+        let g = (0.6 * s.r).ceil() as usize;
+        let around = [(0, 0), (g, 0), (0, g), (g, g)].into_iter().flat_map(|(dx, dy)| {
+            [(px + dx, py + dy), (px.wrapping_sub(dx), py + dy), (px + dx, py.wrapping_sub(dy))]
+                .into_iter()
+                .chain([(px.wrapping_sub(dx), py.wrapping_sub(dy))])
+        });
+        let hidden = around.filter(|&(x, y)| x < wu && y < hu).any(|(x, y)| {
+            let zk = zbuf[y * wu + x].load(Ordering::Relaxed);
+            zk != u64::MAX && !splat(zk).solid && splat(zk).depth < s.depth
+        });
+        if hidden {
+            return false;
+        }
+        let near = [(px.wrapping_sub(t), py), (px + t, py), (px, py.wrapping_sub(t)), (px, py + t)];
+        near.iter().filter(|&&(x, y)| x < wu && y < hu).any(|&(x, y)| {
+            let nk = sbuf[y * wu + x].load(Ordering::Relaxed);
+            nk == u64::MAX || splat(nk).depth > s.depth + 4.0 * s.world_r
+        })
+    };
     let mut rgb = vec![0u8; 3 * npix];
     rgb.par_chunks_mut(3 * w as usize).enumerate().for_each(|(py, row)| {
         for (px, out) in row.chunks_exact_mut(3).enumerate() {
             let at = py * w as usize + px;
             let key = zbuf[at].load(Ordering::Relaxed);
-            let mut c = if key == u64::MAX { bg } else { shade(key, px, py) };
-            if let Some(wk) = wbuf.get(at).map(|k| k.load(Ordering::Relaxed)) {
-                // The nearest wall particle, if in front, over the rest.
-                if wk != u64::MAX && wk >> 32 < key >> 32 {
-                    let wc = shade(wk, px, py);
-                    c = [0, 1, 2].map(|i| c[i] + WALL_ALPHA * (wc[i] - c[i]));
+            let mut c = if edge(px, py) {
+                OUTLINE
+            } else if key == u64::MAX {
+                bg
+            } else {
+                shade(key, px, py)
+            };
+            // The nearest wall and translucent fluid surfaces in front,
+            // the farther first.
+            let mut over: [(u64, f32); 2] = [(u64::MAX, 0.0); 2];
+            for (slot, (buf, alpha)) in over.iter_mut().zip([(&wbuf, WALL_ALPHA), (&fbuf, opts.fluid_opacity)]) {
+                if let Some(k) = buf.get(at).map(|k| k.load(Ordering::Relaxed)) {
+                    if k != u64::MAX && k >> 32 < key >> 32 {
+                        *slot = (k, alpha);
+                    }
+                }
+            }
+            over.sort_by_key(|o| std::cmp::Reverse(o.0 >> 32));
+            for (k, alpha) in over {
+                if k != u64::MAX {
+                    let oc = shade(k, px, py);
+                    c = [0, 1, 2].map(|i| c[i] + alpha * (oc[i] - c[i]));
                 }
             }
             for i in 0..3 {
@@ -773,5 +1018,5 @@ pub fn render(frame: &Frame, opts: &RenderOptions) -> Result<Image, RenderError>
             }
         }
     });
-    Ok(Image { width: w, height: h, rgb })
+    Ok(rgb)
 }
