@@ -12,12 +12,12 @@ pub mod output;
 mod summary;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
-pub use frame::{kind, INNER_SHADE};
+pub use frame::{kind, INNER_SHADE, WALL_ARRAYS_PER_FRAME};
 pub use summary::RunSummary;
 
 use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;
-use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
+use crate::io::{write_frame, write_frame_as, FrameLayout, IoError, SeriesWriter, SharedRows, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
 use crate::scene::Phase;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -48,6 +48,9 @@ pub struct RunOptions {
     /// Testing aid: sets a fluid velocity to NaN just before the step that
     /// starts at this step number, to exercise the failure path.
     pub inject_nan_at_step: Option<u64>,
+    /// Deflate the frames (`porosph run --compress`): smaller files, a
+    /// little more time per frame.
+    pub compress: bool,
 }
 
 impl Default for RunOptions {
@@ -62,6 +65,7 @@ impl Default for RunOptions {
             keep: DEFAULT_KEEP,
             resume: None,
             inject_nan_at_step: None,
+            compress: false,
         }
     }
 }
@@ -180,6 +184,12 @@ fn create_dir(p: &Path) -> Result<(), IoError> {
     std::fs::create_dir_all(p).map_err(|e| IoError::new(p, format!("cannot create directory: {e}")))
 }
 
+/// The run's static walls, in `frames/`: their positions and every array
+/// but [`WALL_ARRAYS_PER_FRAME`], written once; each frame maps its wall
+/// rows to this file (`io::SharedRows`), so ParaView and `porosph render`
+/// still see the walls in every frame.
+pub const WALLS_FILE: &str = "walls.vtkhdf";
+
 /// The number `n` of a frame file `frame_<n>.vtkhdf`.
 fn frame_number(name: &str) -> Option<u64> {
     let digits = name.strip_prefix("frame_")?.strip_suffix(".vtkhdf")?;
@@ -275,9 +285,25 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         b
     };
 
+    // The walls once (again if a resumed run's file went missing; they
+    // never move, so it is the same file).
+    let walls_path = frames_dir.join(WALLS_FILE);
+    if !sim.walls.is_empty() && (opts.resume.is_none() || !walls_path.is_file()) {
+        let layout = FrameLayout { compress: opts.compress, shared: None };
+        write_frame_as(&walls_path, &sim.frame().rows(sim.wall_rows()), &layout)?;
+    }
     let write = |sim: &Simulation, frames: &mut u64, series: &mut SeriesWriter| -> Result<(), IoError> {
         let name = format!("frame_{:05}.vtkhdf", *frames);
-        write_frame(&frames_dir.join(&name), &sim.frame())?;
+        let frame = sim.frame();
+        let static_arrays: Vec<&str> =
+            frame.arrays.iter().map(|a| a.name.as_str()).filter(|n| !WALL_ARRAYS_PER_FRAME.contains(n)).collect();
+        // The fluid comes first: its count may change, the walls' does not.
+        let shared = (!sim.walls.is_empty()).then(|| SharedRows {
+            file: WALLS_FILE,
+            rows: sim.wall_rows(),
+            arrays: &static_arrays,
+        });
+        write_frame_as(&frames_dir.join(&name), &frame, &FrameLayout { compress: opts.compress, shared })?;
         series.add(&name, sim.time)?;
         *frames += 1;
         Ok(())
