@@ -365,12 +365,12 @@ fn run_frames_name_their_phases_and_keep_the_walls_once() {
 /// The density of partly absorbed fluid particles was the whole particle's
 /// mass over its faded outer volume (1.8e6 kg/m^3 at alpha_f 0.507 in
 /// Example 2); it is the outer mixture's density now. A soaking sponge
-/// (the porous scene of tests/checkpoint_restart.rs) after 40 steps: every
+/// (`common::POROUS_SOAK`) after 40 steps: every
 /// fluid particle's density within 0.3 to 1.5 times the water's (below 1
 /// at the free surface), walls within 0 to 1.5 times, the sponge at its 600.
 #[test]
 fn density_is_meaningful_for_every_kind_of_particle_regression_1e6_for_partly_absorbed() {
-    let scene = common::scene_text(POROUS_SOAK);
+    let scene = common::scene_text(common::POROUS_SOAK);
     let frame = common::with_threads(2, || {
         let mut sim = Simulation::new(scene);
         for _ in 0..40 {
@@ -396,44 +396,3 @@ fn density_is_meaningful_for_every_kind_of_particle_regression_1e6_for_partly_ab
         assert!(ok, "point {i} (kind {k}, alpha {}, beta {}): density {d}", alpha[i], beta[i]);
     }
 }
-
-const POROUS_SOAK: &str = r#"
-[simulation]
-particle_spacing = 0.015
-end_time = 1.0
-max_dt = 0.002
-frame_interval = 0.01
-
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 1.0
-
-[[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.1] }
-container = true
-
-[[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.15, 0.1] }
-fractions = { water = 1.0 }
-
-[[solid]]
-name = "sponge"
-box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] }
-density = 600.0
-shear_modulus = 2e4
-lame_lambda = 1e4
-fixed = { box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] } }
-
-[solid.porous]
-porosity = 0.6
-rest_pore_pressure = 5e4
-biot_modulus = 4.9e4
-swelling = 7.5e-4
-capillarity = 2.0
-absorption = 1.0
-
-[solid.porous.phase.water]
-permeability = 1e-7
-outer_pore_pressure = 2.5e4
-"#;

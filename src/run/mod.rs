@@ -19,7 +19,7 @@ use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;
 use crate::io::{write_frame, write_frame_as, FrameLayout, IoError, SeriesWriter, SharedRows, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
-use crate::scene::Phase;
+use crate::scene::{Phase, Solid};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -147,14 +147,16 @@ impl From<IoError> for RunError {
     }
 }
 
-/// Header of `stats.csv` for a scene with `phases`: then per phase in
-/// scene order `volume_<phase>` (outer + inner, m^3,
+/// Header of `stats.csv` for a scene with `phases` and `solids`: then per
+/// phase in scene order `volume_<phase>` (outer + inner, m^3,
 /// [`Simulation::phase_volumes`]), `volume_outer_<phase>`,
 /// `volume_inner_<phase>` (the part inside porous solids) and
-/// `mass_<phase>` (kg), then
-/// `ms_<pass>` per pass, `ms_step`, and `gpu_ms_<pass>` (device time, 0
-/// on the CPU) per pass the GPU backend can run.
-pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
+/// `mass_<phase>` (kg), then per porous solid (`[[solid]]` with
+/// `[solid.porous]`, by name) `absorbed_<solid>` (m^3) and
+/// `saturation_<solid>` ([`porous_solids`]), then `ms_<pass>` per pass,
+/// `ms_step`, and `gpu_ms_<pass>` (device time, 0 on the CPU) per pass the
+/// GPU backend can run.
+pub fn stats_columns(phases: &[Phase], solids: &[Solid]) -> Vec<String> {
     let mut c: Vec<String> = [
         "step",
         "time",
@@ -165,6 +167,7 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
         "max_drift_speed",
         "cg_iterations",
         "cg_residual",
+        "granular_substeps",
         "fluid_particles",
     ]
     .iter()
@@ -174,10 +177,33 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
     c.extend(phases.iter().map(|p| format!("volume_outer_{}", p.name)));
     c.extend(phases.iter().map(|p| format!("volume_inner_{}", p.name)));
     c.extend(phases.iter().map(|p| format!("mass_{}", p.name)));
+    let porous = || solids.iter().filter(|s| s.porous.is_some());
+    c.extend(porous().map(|s| format!("absorbed_{}", s.name)));
+    c.extend(porous().map(|s| format!("saturation_{}", s.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c.extend(GPU_PASS_NAMES.iter().map(|p| format!("gpu_ms_{p}")));
     c
+}
+
+/// Per porous solid of the scene (a `[[solid]]` with `[solid.porous]`, in
+/// scene order): the liquid it holds, sum_i S_i h^3 over its particles,
+/// m^3, and its mean saturation S = sum_k phi_k (P-Eq. 15: absorbed volume
+/// per particle volume; at most its porosity), as two lists.
+pub fn porous_solids(sim: &Simulation) -> (Vec<f64>, Vec<f64>) {
+    let n = sim.scene.solids.len();
+    let (mut sum, mut count) = (vec![0.0f64; n], vec![0usize; n]);
+    for (&b, &s) in sim.solids.body.iter().zip(&sim.solids.saturation) {
+        if let (Some(x), Some(c)) = (sum.get_mut(b as usize), count.get_mut(b as usize)) {
+            *x += f64::from(s);
+            *c += 1;
+        }
+    }
+    let cell = f64::from(sim.params.cell_volume());
+    let porous: Vec<usize> = (0..n).filter(|&b| sim.scene.solids[b].porous.is_some()).collect();
+    let absorbed = porous.iter().map(|&b| sum[b] * cell).collect();
+    let mean = porous.iter().map(|&b| if count[b] > 0 { sum[b] / count[b] as f64 } else { 0.0 }).collect();
+    (absorbed, mean)
 }
 
 fn create_dir(p: &Path) -> Result<(), IoError> {
@@ -232,13 +258,14 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     let series_path = frames_dir.join("frames.vtkhdf.series");
     let (mut stats, mut series, mut frames, mut next_frame) = match opts.resume {
         None => (
-            StatsWriter::create(&stats_path, &stats_columns(&sim.scene.phases))?,
+            StatsWriter::create(&stats_path, &stats_columns(&sim.scene.phases, &sim.scene.solids))?,
             SeriesWriter::new(&series_path),
             0u64,
             0.0f64,
         ),
         Some(c) => {
-            let stats = StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases), sim.step)?;
+            let stats =
+                StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases, &sim.scene.solids), sim.step)?;
             let mut series = SeriesWriter::open_existing(&series_path)?;
             let later = remove_later_frames(&frames_dir, &mut series, c.frames)?;
             if later > 0 && !opts.quiet {
@@ -361,6 +388,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.max_drift_speed as f64,
             st.cg_iterations as f64,
             st.cg_residual as f64,
+            st.granular_substeps as f64,
             n,
         ];
         let (outer, inner) = sim.phase_volumes_split();
@@ -368,6 +396,9 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         row.extend(outer);
         row.extend(inner);
         row.extend(sim.phase_masses());
+        let (absorbed, saturation) = porous_solids(sim);
+        row.extend(absorbed);
+        row.extend(saturation);
         row.extend(st.times.ms);
         row.push(ms_step);
         row.extend(
