@@ -134,9 +134,12 @@ enum Command {
         #[command(flatten)]
         args: RenderArgs,
     },
-    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG: the time step,
-    /// the pressure solve (iterations, density error), the change of each
-    /// phase volume and the time per pass, stacked, over the run.
+    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG, over simulated
+    /// time: the time step, the pressure solve (iterations, density error),
+    /// the change of each phase's volume and mass, the liquid in each
+    /// porous solid, the solid solver (elastic CG iterations, granular
+    /// sub-steps) and the time per pass, stacked. Phases in their colours
+    /// of the run's scene.toml (beside stats.csv).
     Plot {
         /// A run directory (holding stats.csv), or a stats file.
         input: PathBuf,
@@ -147,7 +150,7 @@ enum Command {
         #[arg(long, default_value_t = 1600)]
         width: u32,
         /// Image height, pixels.
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1400)]
         height: u32,
     },
 }
@@ -617,8 +620,12 @@ fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> 
         }
         _ => csv.display().to_string(),
     };
-    let image =
-        plot::plot(&table, &title, &PlotOptions { width, height }).map_err(|e| format!("{}: {e}", csv.display()))?;
+    // The phases' colours from the run's scene, if it is there.
+    let phase_colors = std::fs::read_to_string(csv.with_file_name("scene.toml"))
+        .map(|text| plot::phase_colors(&text))
+        .unwrap_or_default();
+    let image = plot::plot(&table, &title, &PlotOptions { width, height, phase_colors })
+        .map_err(|e| format!("{}: {e}", csv.display()))?;
     let out = out.unwrap_or_else(|| csv.with_file_name("plots.png"));
     image.write_png(&out).map_err(|e| e.to_string())?;
     let rows = table.rows();
