@@ -362,6 +362,58 @@ fn run_frames_name_their_phases_and_keep_the_walls_once() {
     assert!(packed_bytes < plain_bytes, "--compress: {packed_bytes} bytes, plain {plain_bytes}");
 }
 
+/// A walls-once run resumes and renders: `porosph resume` of a checkpoint
+/// whose run lost `walls.vtkhdf` writes it again; the frames written after
+/// the resume read back with their walls; `render --movie` draws every
+/// frame and takes `walls.vtkhdf` for none.
+#[test]
+fn walls_once_frames_resume_and_render_as_a_movie() {
+    let dir = TempDir::new("walls-resume");
+    let scene = dir.path("two_phase.toml");
+    fs::write(&scene, common::TWO_PHASE).expect("write scene");
+    let out = dir.path("run");
+    let r = common::porosph(&[
+        "run",
+        common::s(&scene),
+        "--out",
+        common::s(&out),
+        "--steps",
+        "4",
+        "--frame-every",
+        "0.004",
+        "--checkpoint-every",
+        "2steps",
+        "--quiet",
+    ]);
+    assert!(r.status.success(), "{}", common::text(&r.stderr));
+    let walls = out.join("frames/walls.vtkhdf");
+    let wall_points = read_frame(&walls).expect("walls").points;
+    fs::remove_file(&walls).expect("remove walls.vtkhdf");
+    let ckpt = out.join("checkpoints/ckpt_00000002.h5");
+    let r = common::porosph(&["resume", common::s(&ckpt), "--steps", "6", "--quiet"]);
+    assert!(r.status.success(), "{}", common::text(&r.stderr));
+    assert_eq!(read_frame(&walls).expect("walls written again").points, wall_points);
+    // dt = 2 ms: to step 8, frames 0-4 (t = 0 to 16 ms), 2 of them
+    // written before the checkpoint, 3 after.
+    for n in 0..5 {
+        let frame = read_frame(&out.join(format!("frames/frame_{n:05}.vtkhdf"))).expect("frame");
+        let ArrayData::U8(kinds) = &frame.arrays.iter().find(|a| a.name == "kind").expect("kind").data else {
+            panic!("kind is not u8")
+        };
+        let w: Vec<[f32; 3]> =
+            frame.points.iter().zip(kinds).filter(|(_, &k)| k == kind::WALL).map(|(p, _)| *p).collect();
+        assert_eq!(w, wall_points, "frame {n}");
+    }
+    let r = common::porosph(&["render", common::s(&out), "--movie", "--width", "64", "--height", "48"]);
+    assert!(r.status.success(), "{}", common::text(&r.stderr));
+    let mut pictures: Vec<String> = fs::read_dir(out.join("render"))
+        .expect("render/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    pictures.sort();
+    assert_eq!(pictures, (0..5).map(|n| format!("frame_{n:05}.png")).collect::<Vec<_>>());
+}
+
 /// The density of partly absorbed fluid particles was the whole particle's
 /// mass over its faded outer volume (1.8e6 kg/m^3 at alpha_f 0.507 in
 /// Example 2); it is the outer mixture's density now. A soaking sponge
