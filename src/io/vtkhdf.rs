@@ -95,6 +95,9 @@ pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), IoError> {
 /// says (compressed, rows shared with another file).
 pub fn write_frame_as(path: &Path, frame: &Frame, layout: &FrameLayout) -> Result<(), IoError> {
     check_frame(frame).map_err(|reason| IoError::new(path, reason))?;
+    if layout.compress && !hdf5::filters::deflate_available() {
+        return Err(IoError::new(path, "cannot compress: this HDF5 library has no deflate (gzip) filter"));
+    }
     if let Some(s) = &layout.shared {
         check_shared(frame, s).map_err(|reason| IoError::new(path, reason))?;
     }
@@ -338,8 +341,9 @@ fn write_contents(file: &File, frame: &Frame, layout: &FrameLayout) -> Result<()
         }
         None => None,
     };
-    let rows = |name: &str, path: &str| {
-        own.as_ref().filter(|(_, s)| name.is_empty() || s.arrays.contains(&name)).map(|(g, s)| Rows {
+    // The rows of `Points` (`array` None) and of the shared arrays.
+    let rows = |array: Option<&str>, path: &str| {
+        own.as_ref().filter(|(_, s)| array.is_none_or(|a| s.arrays.contains(&a))).map(|(g, s)| Rows {
             own: g,
             own_path: format!("/{OWN_ROWS}/{path}"),
             shared: s,
@@ -357,7 +361,7 @@ fn write_contents(file: &File, frame: &Frame, layout: &FrameLayout) -> Result<()
         .ctx("cannot write /VTKHDF@Type")?;
 
     write_dataset(&vtk, "NumberOfPoints", &[n_ids], &[1], false)?;
-    write_point_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3], compress, rows("", "Points"))?;
+    write_point_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3], compress, rows(None, "Points"))?;
 
     for topology in TOPOLOGIES {
         let g = vtk.create_group(topology).ctx(format_args!("cannot create /VTKHDF/{topology}"))?;
@@ -379,7 +383,7 @@ fn write_contents(file: &File, frame: &Frame, layout: &FrameLayout) -> Result<()
         .ctx("cannot create /VTKHDF/PointData")?;
     for a in &frame.arrays {
         let shape: &[usize] = if a.components == 1 { &[n] } else { &[n, a.components] };
-        let r = || rows(&a.name, &format!("PointData/{}", a.name));
+        let r = || rows(Some(&a.name), &format!("PointData/{}", a.name));
         let ds = match &a.data {
             ArrayData::F32(v) => write_point_dataset(&point_data, &a.name, v, shape, compress, r())?,
             ArrayData::U32(v) => write_point_dataset(&point_data, &a.name, v, shape, compress, r())?,
