@@ -72,6 +72,12 @@ struct RunArgs {
     /// non-zero exit).
     #[arg(long, value_name = "N", hide = true)]
     inject_nan_at_step: Option<u64>,
+    /// Compress the frames (HDF5 deflate, level 4, after a byte shuffle;
+    /// ParaView and h5py read them as they are): about a third of the
+    /// bytes, a little more time per frame. Resume: pass it again to keep
+    /// compressing.
+    #[arg(long)]
+    compress: bool,
 }
 
 #[derive(Subcommand)]
@@ -127,9 +133,12 @@ enum Command {
         #[command(flatten)]
         args: RenderArgs,
     },
-    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG: the time step,
-    /// the pressure solve (iterations, density error), the change of each
-    /// phase volume and the time per pass, stacked, over the run.
+    /// Plot a run's statistics (OUTDIR/stats.csv) to a PNG, over simulated
+    /// time: the time step, the pressure solve (iterations, density error),
+    /// the change of each phase's volume and mass, the liquid in each
+    /// porous solid, the solid solver (elastic CG iterations, granular
+    /// sub-steps) and the time per pass, stacked. Phases in their colours
+    /// of the run's scene.toml (beside stats.csv).
     Plot {
         /// A run directory (holding stats.csv), or a stats file.
         input: PathBuf,
@@ -140,7 +149,7 @@ enum Command {
         #[arg(long, default_value_t = 1600)]
         width: u32,
         /// Image height, pixels.
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1400)]
         height: u32,
     },
 }
@@ -396,6 +405,7 @@ fn run_command(scene: Option<String>, out: PathBuf, a: RunArgs) -> Result<(), St
             keep: a.keep.unwrap_or(DEFAULT_KEEP),
             resume: None,
             inject_nan_at_step: a.inject_nan_at_step,
+            compress: a.compress,
         };
         take_output(claim)?;
         execute(&mut sim, &opts)
@@ -478,6 +488,7 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
         keep: a.keep.unwrap_or_else(|| usize::try_from(r.keep).unwrap_or(DEFAULT_KEEP)),
         resume: Some(Continuation { frames: r.frames_written, next_frame }),
         inject_nan_at_step: a.inject_nan_at_step,
+        compress: a.compress,
     };
     a.pool()?.install(|| {
         let mut sim = Simulation::from_saved_state(ckpt.state).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -556,6 +567,8 @@ fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let mut files: Vec<PathBuf> = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file() && p.extension().is_some_and(|x| x == "vtkhdf"))
+        // Not the run's walls file (frames/walls.vtkhdf): the frames hold the walls.
+        .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("frame_")))
         .collect();
     files.sort();
     if files.is_empty() {
@@ -699,8 +712,12 @@ fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> 
         }
         _ => csv.display().to_string(),
     };
-    let image =
-        plot::plot(&table, &title, &PlotOptions { width, height }).map_err(|e| format!("{}: {e}", csv.display()))?;
+    // The phases' colours from the run's scene, if it is there.
+    let phase_colors = std::fs::read_to_string(csv.with_file_name("scene.toml"))
+        .map(|text| plot::phase_colors(&text))
+        .unwrap_or_default();
+    let image = plot::plot(&table, &title, &PlotOptions { width, height, phase_colors })
+        .map_err(|e| format!("{}: {e}", csv.display()))?;
     let out = out.unwrap_or_else(|| csv.with_file_name("plots.png"));
     image.write_png(&out).map_err(|e| e.to_string())?;
     let rows = table.rows();

@@ -1,13 +1,16 @@
 //! `porosph plot`: a picture of the asked size whose panels are drawn where
-//! they should be; columns found by name, whatever else the header holds;
-//! bad input (no file, empty, malformed rows) is an error naming the file
-//! and the line, never a panic; the command works on a real run.
+//! [`layout`] puts them, each with its own columns (issue 36, item 6: the
+//! solid solver apart from the pressure solve, mass drift, porous solids,
+//! phases in their colours, lines on each other all visible); columns found
+//! by name, whatever else the header holds; bad input (no file, empty,
+//! malformed rows) is an error naming the file and the line, never a
+//! panic; the command works on a real run.
 
 mod common;
 
 use common::TempDir;
 use porosph::io::{read_stats, StatsTable};
-use porosph::plot::{plot, PlotOptions, PALETTE};
+use porosph::plot::{layout, phase_colors, plot, PlotOptions, PALETTE, PANELS};
 use porosph::render::Image;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -24,8 +27,9 @@ fn s(p: &Path) -> &str {
 const WHITE: [u8; 3] = [255, 255, 255];
 
 /// A stats file of `rows` steps: the columns porosph writes today, two
-/// phases, and columns other passes and solvers add (`cg_iterations`,
-/// `ms_elasticity`, outer and inner volumes), in no particular order.
+/// phases, a porous solid, and columns other passes and solvers add
+/// (`cg_iterations`, `granular_substeps`, `ms_elasticity`, outer and inner
+/// volumes), in no particular order.
 fn synthetic_csv(rows: usize, with_times: bool) -> String {
     let mut cols = vec![
         "step",
@@ -39,6 +43,11 @@ fn synthetic_csv(rows: usize, with_times: bool) -> String {
         "volume_outer_red",
         "volume_inner_red",
         "volume_blue",
+        "mass_red",
+        "mass_blue",
+        "absorbed_sponge",
+        "saturation_sponge",
+        "granular_substeps",
     ];
     if with_times {
         cols.extend(["ms_neighbors", "ms_pressure_solve", "ms_elasticity", "ms_drift", "ms_step"]);
@@ -59,6 +68,11 @@ fn synthetic_csv(rows: usize, with_times: bool) -> String {
             1e-3 * (1.0 - absorbed),
             1e-3 * absorbed,
             2e-3 * (1.0 + 0.5 * t),
+            1.0 + 1e-9 * (i % 4) as f64,
+            1.6 - 1e-9 * (i % 3) as f64,
+            2e-4 * absorbed,
+            0.3 * absorbed,
+            (3 + i % 2) as f64,
         ];
         if with_times {
             // ms_drift is 0 throughout (a one-phase pass): left out.
@@ -79,34 +93,44 @@ fn table(text: &str) -> StatsTable {
 }
 
 fn opts() -> PlotOptions {
-    PlotOptions { width: 800, height: 500 }
+    PlotOptions { width: 800, height: 700, ..PlotOptions::default() }
 }
 
-/// Pixels of `img` in the quadrant (`col`, `row`) (0 or 1 each) that satisfy `f`.
-fn count_in_quadrant(img: &Image, col: u32, row: u32, f: impl Fn([u8; 3]) -> bool) -> usize {
-    let (w, h) = (img.width / 2, img.height / 2);
+fn size(width: u32, height: u32) -> PlotOptions {
+    PlotOptions { width, height, ..PlotOptions::default() }
+}
+
+/// Pixels of `img` in panel `name` ([`PANELS`], placed by [`layout`]) that satisfy `f`.
+fn count_in_panel(img: &Image, name: &str, f: impl Fn([u8; 3]) -> bool) -> usize {
+    let k = PANELS.iter().position(|p| *p == name).unwrap_or_else(|| panic!("no panel {name}"));
+    let [x0, y0, w, h] = layout(img.width, img.height)[k];
     let mut n = 0;
-    for y in row * h..(row + 1) * h {
-        for x in col * w..(col + 1) * w {
+    for y in y0..y0 + h {
+        for x in x0..x0 + w {
             n += usize::from(f(img.pixel(x, y)));
         }
     }
     n
 }
 
+/// Pixels of panel `name`.
+fn panel_pixels(img: &Image, name: &str) -> usize {
+    count_in_panel(img, name, |_| true)
+}
+
 #[test]
 fn plot_has_the_asked_size() {
     let t = table(&synthetic_csv(50, true));
     for (w, h) in [(800, 500), (400, 300), (1601, 999)] {
-        let img = plot(&t, "title", &PlotOptions { width: w, height: h }).unwrap();
+        let img = plot(&t, "title", &size(w, h)).unwrap();
         assert_eq!((img.width, img.height, img.rgb.len()), (w, h, 3 * (w * h) as usize));
     }
     let png = plot(&t, "title", &opts()).unwrap().encode_png().unwrap();
     let dec = png::Decoder::new(std::io::Cursor::new(png)).read_info().unwrap();
-    assert_eq!((dec.info().width, dec.info().height), (800, 500));
+    assert_eq!((dec.info().width, dec.info().height), (800, 700));
     // Too small for the text, or too large: an error, not a picture.
     for (w, h) in [(399, 300), (400, 299), (9000, 500)] {
-        let e = plot(&t, "title", &PlotOptions { width: w, height: h }).unwrap_err();
+        let e = plot(&t, "title", &size(w, h)).unwrap_err();
         assert!(e.0.contains("plot size"), "{e}");
     }
 }
@@ -114,32 +138,75 @@ fn plot_has_the_asked_size() {
 #[test]
 fn panels_are_drawn_in_their_places() {
     let full = plot(&table(&synthetic_csv(300, true)), "title", &opts()).unwrap();
-    let quadrant_total = (full.width / 2 * full.height / 2) as usize;
-    // Top left, the time step: the dt line, in the first series colour.
-    let dt_colour = PALETTE[0];
-    let dt_pixels = count_in_quadrant(&full, 0, 0, |c| c == dt_colour);
+    let has = |panel: &str, colour: [u8; 3]| count_in_panel(&full, panel, |c| c == colour);
+    // The time step: the dt line, in the first series colour.
+    let dt_pixels = has("Time step", PALETTE[0]);
     assert!(dt_pixels > 200, "{dt_pixels} dt line pixels");
-    // Top right, the pressure solve: both iteration lines and the density error.
-    for k in [0, 1, 3] {
-        let n = count_in_quadrant(&full, 1, 0, |c| c == PALETTE[k]);
+    // The pressure solve: its iterations and the density error, and not the
+    // solid solver's cg_iterations (which would be the second line).
+    for k in [0, 3] {
+        let n = has("Pressure solve", PALETTE[k]);
         assert!(n > 100, "pressure solve, colour {k}: {n} pixels");
     }
-    // Bottom left, the volumes: four lines (red at 0, outer red down,
-    // inner red up, blue up).
-    for (k, colour) in PALETTE[..4].iter().enumerate() {
-        let n = count_in_quadrant(&full, 0, 1, |c| c == *colour);
-        assert!(n > 50, "volumes, colour {k}: {n} pixels");
+    assert_eq!(has("Pressure solve", PALETTE[1]), 0, "cg_iterations in the pressure solve");
+    // The solid solver: cg_iterations and granular_substeps.
+    for k in [0, 1] {
+        let n = has("Solid solver", PALETTE[k]);
+        assert!(n > 100, "solid solver, colour {k}: {n} pixels");
     }
-    // Bottom right, the stacked pass times: large filled areas.
-    let filled = count_in_quadrant(&full, 1, 1, |c| c != WHITE);
-    assert!(filled > quadrant_total / 4, "{filled} of {quadrant_total} pixels drawn");
+    // Volumes and mass drift: both phases (palette colours without a scene).
+    for panel in ["Phase volumes", "Mass drift"] {
+        for k in [0, 1] {
+            let n = has(panel, PALETTE[k]);
+            assert!(n > 50, "{panel}, colour {k}: {n} pixels");
+        }
+    }
+    // Porous solids: the sponge's absorbed volume and saturation.
+    let n = has("Porous solids", PALETTE[0]);
+    assert!(n > 200, "porous solids: {n} pixels");
+    // The stacked pass times: large filled areas.
+    let total = panel_pixels(&full, "Time per pass");
+    let filled = count_in_panel(&full, "Time per pass", |c| c != WHITE);
+    assert!(filled > total / 4, "{filled} of {total} pixels drawn");
 
     // Without ms_* columns that panel only says so: mostly background.
     let bare = plot(&table(&synthetic_csv(300, false)), "title", &opts()).unwrap();
-    let drawn = count_in_quadrant(&bare, 1, 1, |c| c != WHITE);
-    assert!(drawn < quadrant_total / 50, "{drawn} of {quadrant_total} pixels drawn");
+    let drawn = count_in_panel(&bare, "Time per pass", |c| c != WHITE);
+    assert!(drawn < total / 50, "{drawn} of {total} pixels drawn");
     // The other panels do not depend on the ms_* columns.
-    assert_eq!(count_in_quadrant(&bare, 0, 0, |c| c == dt_colour), dt_pixels);
+    assert_eq!(count_in_panel(&bare, "Time step", |c| c == PALETTE[0]), dt_pixels);
+}
+
+/// Phases are drawn in their scene colours: `outer_red` red (it was the
+/// palette's green, the third line), the blue phase blue.
+#[test]
+fn phases_take_their_scene_colours() {
+    let scene = "[[phase]]\nname = \"red\"\ncolor = [0.9, 0.05, 0.05]\n\n[[phase]]\nname = \"blue\"\ncolor = [0.05, 0.1, 0.9]\n";
+    let colors = phase_colors(scene);
+    assert_eq!(colors.iter().map(|c| c.0.as_str()).collect::<Vec<_>>(), ["red", "blue"]);
+    let [red, blue] = [colors[0].1, colors[1].1];
+    assert!(red[0] > 200 && red[1] < 90 && blue[2] > 200, "{red:?} {blue:?}");
+    let img = plot(&table(&synthetic_csv(300, false)), "t", &PlotOptions { phase_colors: colors, ..opts() }).unwrap();
+    for panel in ["Phase volumes", "Mass drift"] {
+        let (r, b) = (count_in_panel(&img, panel, |c| c == red), count_in_panel(&img, panel, |c| c == blue));
+        assert!(r > 100 && b > 50, "{panel}: {r} red, {b} blue pixels");
+        assert_eq!(count_in_panel(&img, panel, |c| c == PALETTE[2]), 0, "{panel}: palette green");
+    }
+}
+
+/// Regression: several phases whose volumes do not change all lie on 0,
+/// and the last one drawn hid the others. Each must show in its colour.
+#[test]
+fn lines_lying_on_each_other_all_show() {
+    let mut text = "step,time,volume_a,volume_b,volume_c\n".to_string();
+    for i in 1..=200 {
+        text += &format!("{i},{},1.0,2.0,0.5\n", i as f64 * 1e-3);
+    }
+    let img = plot(&table(&text), "flat", &opts()).unwrap();
+    for (k, colour) in PALETTE[..3].iter().enumerate() {
+        let n = count_in_panel(&img, "Phase volumes", |c| c == *colour);
+        assert!(n > 60, "line {k}: {n} pixels");
+    }
 }
 
 #[test]
@@ -153,11 +220,11 @@ fn odd_but_valid_tables_plot() {
         synthetic_csv(20_000, true),
     ] {
         let t = table(&text);
-        plot(&t, "odd", &PlotOptions { width: 400, height: 300 }).unwrap_or_else(|e| panic!("{e}: {text:.80}"));
+        plot(&t, "odd", &size(400, 300)).unwrap_or_else(|e| panic!("{e}: {text:.80}"));
     }
     // One row: a dot, not an invisible line of one point.
     let one = plot(&table("step,time,dt\n1,0.1,0.001\n"), "one", &opts()).unwrap();
-    let dot = count_in_quadrant(&one, 0, 0, |c| c == PALETTE[0]);
+    let dot = count_in_panel(&one, "Time step", |c| c == PALETTE[0]);
     assert!(dot >= 9, "{dot} dt pixels");
     let e = plot(&table("a,time\n1,2\n"), "x", &opts()).unwrap_err();
     assert!(e.0.contains("no `step` column"), "{e}");
@@ -198,7 +265,7 @@ fn cli_plots_a_real_run_and_reports_bad_input() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let png = run.join("plots.png");
     let dec = png::Decoder::new(std::fs::File::open(&png).unwrap()).read_info().unwrap();
-    assert_eq!((dec.info().width, dec.info().height), (1600, 1000));
+    assert_eq!((dec.info().width, dec.info().height), (1600, 1400));
 
     // A stats file directly, with -o and a size.
     let other = dir.path("other.png");
@@ -235,4 +302,41 @@ fn cli_plots_a_real_run_and_reports_bad_input() {
         assert!(err.contains(&want), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
+}
+
+/// The statistics the new panels read: `absorbed_<solid>` and
+/// `saturation_<solid>` per porous solid, `granular_substeps`. A soaking
+/// sponge (`common::POROUS_SOAK`) holds liquid after 20 steps: absorbed =
+/// its particles x h^3 x mean saturation; a sand column takes one
+/// granular sub-step or more every step.
+#[test]
+fn stats_carry_porous_solids_and_granular_substeps() {
+    let dir = TempDir::new("plot-stats-columns");
+    let sand = "[simulation]\nparticle_spacing = 0.02\nend_time = 1.0\nmax_dt = 0.001\n\n\
+                [[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 0.001\n\n\
+                [[wall]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.1, 0.2, 0.06] }\ncontainer = true\n\n\
+                [[solid]]\nname = \"sand\"\nbox = { min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.06] }\n\
+                density = 1600.0\nshear_modulus = 1e6\nlame_lambda = 1e6\nmodel = \"granular\"\nfriction_angle = 30.0\n";
+    let mut tables = Vec::new();
+    for (name, text) in [("soak", common::POROUS_SOAK), ("sand", sand)] {
+        let scene = dir.path(&format!("{name}.toml"));
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.path(name);
+        let r = porosph(&["run", s(&scene), "--steps", "20", "--out", s(&out), "--quiet"]);
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
+        tables.push(read_stats(&out.join("stats.csv")).unwrap());
+    }
+    let soak = &tables[0];
+    let last = |t: &StatsTable, c: &str| *t.column(c).unwrap_or_else(|| panic!("no {c}")).last().unwrap();
+    let (absorbed, saturation) = (last(soak, "absorbed_sponge"), last(soak, "saturation_sponge"));
+    println!("sponge after 20 steps: {absorbed:.3e} m^3 absorbed, mean saturation {saturation:.3e}");
+    assert!(absorbed > 0.0 && saturation > 0.0 && saturation < 0.6, "{absorbed} {saturation}");
+    // 0.1 m cube at 1.5 cm: particles x h^3 x mean saturation.
+    let particles = absorbed / (saturation * 0.015f64.powi(3));
+    assert!((particles - particles.round()).abs() < 1e-3 && particles > 100.0, "{particles}");
+    assert!(soak.column("granular_substeps").unwrap().iter().all(|&n| n == 0.0));
+    let sand = &tables[1];
+    let substeps = sand.column("granular_substeps").unwrap();
+    assert!(substeps.iter().all(|&n| n >= 1.0), "{substeps:?}");
+    assert!(sand.columns.iter().all(|c| !c.starts_with("absorbed_")), "sand is not porous");
 }

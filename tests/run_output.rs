@@ -59,6 +59,7 @@ fn a_reused_out_is_refused_and_overwrite_removes_the_earlier_run() {
     assert!(first.status.success(), "{}", text(&first.stderr));
     let mut listing = frames(7);
     listing.push("frames.vtkhdf.series".to_string());
+    listing.push("walls.vtkhdf".to_string());
     assert_eq!(names(&out.join("frames")), listing);
     let stats = fs::read(out.join("stats.csv")).expect("stats");
 
@@ -69,7 +70,7 @@ fn a_reused_out_is_refused_and_overwrite_removes_the_earlier_run() {
     assert_eq!(again.status.code(), Some(1), "{err}");
     for want in [
         &format!("--out {} holds an earlier porosph run", s(&out))[..],
-        "7 frames, the frame series index, 2 checkpoints, scene.toml, stats.csv",
+        "7 frames, the frame series index, the walls file, 2 checkpoints, scene.toml, stats.csv",
         "--overwrite",
         "another --out",
         &format!("porosph resume {}", s(&out.join("checkpoints/ckpt_00000012.h5"))),
@@ -89,6 +90,7 @@ fn a_reused_out_is_refused_and_overwrite_removes_the_earlier_run() {
     assert_eq!(names(&out), ["frames", "scene.toml", "stats.csv"]);
     let mut listing = frames(2);
     listing.push("frames.vtkhdf.series".to_string());
+    listing.push("walls.vtkhdf".to_string());
     assert_eq!(names(&out.join("frames")), listing);
     assert_eq!(series_names(&out), frames(2));
     assert_eq!(fs::read_to_string(out.join("stats.csv")).expect("stats").lines().count(), 3);
@@ -179,6 +181,7 @@ fn resume_continues_its_own_run_only() {
     assert!(err.contains("removed 3 frames (frame 4 on) that the run had written after this checkpoint"), "{err}");
     let mut listing = frames(5);
     listing.push("frames.vtkhdf.series".to_string());
+    listing.push("walls.vtkhdf".to_string());
     assert_eq!(names(&out.join("frames")), listing);
     assert_eq!(series_names(&out), frames(5));
     // --overwrite on its own run is an error that says why.

@@ -12,7 +12,7 @@ pub mod xxh64;
 
 pub use series::SeriesWriter;
 pub use stats::{read_stats, StatsTable, StatsWriter};
-pub use vtkhdf::{inspect_frame, read_frame, write_frame};
+pub use vtkhdf::{inspect_frame, read_frame, write_frame, write_frame_as, FrameLayout, SharedRows, DEFLATE_LEVEL};
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -29,6 +29,27 @@ pub struct Frame {
     pub points: Vec<[f32; 3]>,
     /// Point arrays (`PointData/<name>` in the file), in the order written.
     pub arrays: Vec<PointArray>,
+}
+
+impl Frame {
+    /// The points `rows` with their values of every array, at the same
+    /// time and step.
+    pub fn rows(&self, rows: std::ops::Range<usize>) -> Frame {
+        let arrays = self
+            .arrays
+            .iter()
+            .map(|a| {
+                let (lo, hi) = (rows.start * a.components, rows.end * a.components);
+                let data = match &a.data {
+                    ArrayData::F32(v) => ArrayData::F32(v[lo..hi].to_vec()),
+                    ArrayData::U32(v) => ArrayData::U32(v[lo..hi].to_vec()),
+                    ArrayData::U8(v) => ArrayData::U8(v[lo..hi].to_vec()),
+                };
+                PointArray { name: a.name.clone(), unit: a.unit.clone(), components: a.components, data }
+            })
+            .collect();
+        Frame { time: self.time, step: self.step, points: self.points[rows].to_vec(), arrays }
+    }
 }
 
 /// A named per-point array; `data.len() == points * components`, point-major

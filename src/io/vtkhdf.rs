@@ -15,17 +15,30 @@
 //!   FieldData/step     int64 [1]
 //! ```
 //!
-//! Datasets are contiguous and uncompressed: a frame is written in one pass
-//! at disk speed. PointData keeps link creation order, so arrays read back in
-//! the order they were written.
+//! By default datasets are contiguous and uncompressed: a frame is written
+//! in one pass at disk speed. With [`FrameLayout::compress`] every dataset
+//! is chunked, byte-shuffled and deflated (gzip level [`DEFLATE_LEVEL`], the
+//! one filter every HDF5 build and so VTK and ParaView read). PointData keeps
+//! link creation order, so arrays read back in the order they were written.
+//!
+//! Rows stored once ([`SharedRows`], a run's static walls): the rows of
+//! `Points` and of the shared PointData arrays are HDF5 virtual datasets
+//! (HDF5 1.10 and later; VTK, ParaView and h5py read them as plain arrays).
+//! The shared rows map to the same datasets of another frame file beside
+//! this one; the frame's own rows are stored in `/OwnRows/Points` and
+//! `/OwnRows/PointData/<name>` and mapped from there. The root attribute
+//! `shared_rows_file` names the other file, and [`read_frame`] refuses a
+//! frame whose file is missing (HDF5 would read its rows as zeros).
 
 use super::{ArrayData, Frame, IoError, PointArray};
 use hdf5::plist::group_create::LinkCreationOrder;
 use hdf5::types::{FixedAscii, FixedUnicode, TypeDescriptor, VarLenAscii, VarLenUnicode};
 use hdf5::types::{FloatSize, IntSize};
 use hdf5::{Dataset, File, Group, H5Type, IndexType, IterationOrder, Location};
+use hdf5::{Hyperslab, Selection, SliceOrIndex};
 use std::fmt::{self, Display, Write as _};
 use std::fs;
+use std::ops::Range;
 use std::path::Path;
 
 /// VTKHDF format version written to `/VTKHDF@Version`; PolyData needs >= 2.0.
@@ -34,6 +47,40 @@ const VERSION: [i64; 2] = [2, 2];
 /// The topology groups a PolyData file must have, vertices first.
 const TOPOLOGIES: [&str; 4] = ["Vertices", "Lines", "Polygons", "Strips"];
 
+/// Deflate level of compressed frames: level 4 of 9 gets most of what
+/// level 9 gets from particle data at a fraction of its time.
+pub const DEFLATE_LEVEL: u8 = 4;
+
+/// Root attribute naming the file that holds a frame's shared rows.
+const SHARED_ATTR: &str = "shared_rows_file";
+
+/// Where the frame's own rows of virtual datasets are stored.
+const OWN_ROWS: &str = "OwnRows";
+
+/// How a frame is stored; the default writes every dataset contiguous and
+/// uncompressed, every row in the file.
+#[derive(Clone, Debug, Default)]
+pub struct FrameLayout<'a> {
+    /// Chunked, byte-shuffled and deflated datasets ([`DEFLATE_LEVEL`]).
+    pub compress: bool,
+    /// Rows kept once in another frame file beside this one.
+    pub shared: Option<SharedRows<'a>>,
+}
+
+/// Rows of a frame that another frame file in the same directory holds
+/// (a run's static walls: `walls.vtkhdf`, written once per run).
+#[derive(Clone, Debug)]
+pub struct SharedRows<'a> {
+    /// That file's name, in the frame's directory; it is a frame written by
+    /// [`write_frame`] whose points are these rows, in order.
+    pub file: &'a str,
+    /// This frame's rows that are that file's points.
+    pub rows: Range<usize>,
+    /// Point arrays whose values on those rows are that file's (`Points`
+    /// always is); every other array is stored in full in this frame.
+    pub arrays: &'a [&'a str],
+}
+
 /// Writes one frame to `path` (via a temporary name and a rename).
 ///
 /// The file is first written to `.<name>.tmp` in the same directory, closed
@@ -41,8 +88,20 @@ const TOPOLOGIES: [&str; 4] = ["Vertices", "Lines", "Polygons", "Strips"];
 /// crash leaves either the old file or the new one, never a torn frame. On
 /// error the temporary file is removed.
 pub fn write_frame(path: &Path, frame: &Frame) -> Result<(), IoError> {
+    write_frame_as(path, frame, &FrameLayout::default())
+}
+
+/// Writes one frame to `path` as [`write_frame`] does, stored as `layout`
+/// says (compressed, rows shared with another file).
+pub fn write_frame_as(path: &Path, frame: &Frame, layout: &FrameLayout) -> Result<(), IoError> {
     check_frame(frame).map_err(|reason| IoError::new(path, reason))?;
-    super::atomic::write_with(path, |tmp| write_file(tmp, frame))
+    if layout.compress && !hdf5::filters::deflate_available() {
+        return Err(IoError::new(path, "cannot compress: this HDF5 library has no deflate (gzip) filter"));
+    }
+    if let Some(s) = &layout.shared {
+        check_shared(frame, s).map_err(|reason| IoError::new(path, reason))?;
+    }
+    super::atomic::write_with(path, |tmp| write_file(tmp, frame, layout))
 }
 
 /// Reads a frame written by [`write_frame`].
@@ -55,6 +114,20 @@ pub fn read_frame(path: &Path) -> Result<Frame, IoError> {
         return Err(IoError::new(path, "not a regular file"));
     }
     let file = super::h5::open(path).map_err(|e| IoError::new(path, format!("not a readable HDF5 file: {e}")))?;
+    if file.attr_names().map(|a| a.iter().any(|s| s == SHARED_ATTR)).unwrap_or(false) {
+        let shared = read_string_attr(&file, SHARED_ATTR).map_err(|reason| IoError::new(path, reason))?;
+        let beside = path.parent().unwrap_or(Path::new("")).join(&shared);
+        if !beside.is_file() {
+            return Err(IoError::new(
+                path,
+                format!(
+                    "this frame keeps some of its points (a run's static walls) in {shared}, which is \
+                     not beside it ({} is missing): copy that file with the frames",
+                    beside.display()
+                ),
+            ));
+        }
+    }
     read_file(&file).map_err(|reason| IoError::new(path, reason))
 }
 
@@ -217,6 +290,20 @@ fn check_frame(frame: &Frame) -> Result<(), String> {
     Ok(())
 }
 
+/// Rejects shared rows outside the frame or arrays it does not have.
+fn check_shared(frame: &Frame, s: &SharedRows) -> Result<(), String> {
+    if s.rows.start > s.rows.end || s.rows.end > frame.points.len() {
+        return Err(format!("shared rows {:?} of a frame of {} points", s.rows, frame.points.len()));
+    }
+    if s.file.is_empty() || s.file.contains('/') || s.file.contains('\0') {
+        return Err(format!("shared rows file {:?}: a file name in the frame's directory is needed", s.file));
+    }
+    if let Some(name) = s.arrays.iter().find(|n| !frame.arrays.iter().any(|a| a.name == **n)) {
+        return Err(format!("shared array {name:?} is not in the frame"));
+    }
+    Ok(())
+}
+
 /// Adds what was being done to an HDF5 error.
 trait Context<T> {
     fn ctx(self, what: impl Display) -> Result<T, String>;
@@ -228,21 +315,41 @@ impl<T> Context<T> for hdf5::Result<T> {
     }
 }
 
-fn write_file(tmp: &Path, frame: &Frame) -> Result<(), String> {
+fn write_file(tmp: &Path, frame: &Frame, layout: &FrameLayout) -> Result<(), String> {
     let file = super::h5::create(tmp).ctx(format_args!("cannot create {}", tmp.display()))?;
-    write_contents(&file, frame)?;
+    write_contents(&file, frame, layout)?;
     // Closing flushes: a full disk may only show up here.
     file.close().ctx(format_args!("cannot close {}", tmp.display()))
 }
 
-fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
+fn write_contents(file: &File, frame: &Frame, layout: &FrameLayout) -> Result<(), String> {
     let n = frame.points.len();
     let n_ids = n as i64;
     // Checked in check_frame.
     let step = frame.step as i64;
+    let compress = layout.compress;
 
     write_scalar_attr(file, "time", &frame.time)?;
     write_scalar_attr(file, "step", &step)?;
+    let own = match &layout.shared {
+        Some(s) => {
+            let name: VarLenUnicode = s.file.parse().map_err(|e| format!("shared rows file {:?}: {e}", s.file))?;
+            write_scalar_attr(file, SHARED_ATTR, &name)?;
+            let own = file.create_group(OWN_ROWS).ctx(format_args!("cannot create /{OWN_ROWS}"))?;
+            own.create_group("PointData").ctx(format_args!("cannot create /{OWN_ROWS}/PointData"))?;
+            Some((own, s))
+        }
+        None => None,
+    };
+    // The rows of `Points` (`array` None) and of the shared arrays.
+    let rows = |array: Option<&str>, path: &str| {
+        own.as_ref().filter(|(_, s)| array.is_none_or(|a| s.arrays.contains(&a))).map(|(g, s)| Rows {
+            own: g,
+            own_path: format!("/{OWN_ROWS}/{path}"),
+            shared: s,
+            shared_path: format!("/VTKHDF/{path}"),
+        })
+    };
 
     let vtk = file.create_group("VTKHDF").ctx("cannot create /VTKHDF")?;
     vtk.new_attr_builder().with_data(&VERSION[..]).create("Version").ctx("cannot write /VTKHDF@Version")?;
@@ -253,8 +360,8 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
         .and_then(|a| a.as_writer().write_scalar(&poly_data))
         .ctx("cannot write /VTKHDF@Type")?;
 
-    write_dataset(&vtk, "NumberOfPoints", &[n_ids], &[1])?;
-    write_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3])?;
+    write_dataset(&vtk, "NumberOfPoints", &[n_ids], &[1], false)?;
+    write_point_dataset(&vtk, "Points", frame.points.as_flattened(), &[n, 3], compress, rows(None, "Points"))?;
 
     for topology in TOPOLOGIES {
         let g = vtk.create_group(topology).ctx(format_args!("cannot create /VTKHDF/{topology}"))?;
@@ -263,10 +370,10 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
         let cells_i64 = cells as i64;
         let connectivity: Vec<i64> = (0..cells_i64).collect();
         let offsets: Vec<i64> = (0..=cells_i64).collect();
-        write_dataset(&g, "NumberOfCells", &[cells_i64], &[1])?;
-        write_dataset(&g, "NumberOfConnectivityIds", &[cells_i64], &[1])?;
-        write_dataset(&g, "Connectivity", &connectivity, &[cells])?;
-        write_dataset(&g, "Offsets", &offsets, &[cells + 1])?;
+        write_dataset(&g, "NumberOfCells", &[cells_i64], &[1], false)?;
+        write_dataset(&g, "NumberOfConnectivityIds", &[cells_i64], &[1], false)?;
+        write_dataset(&g, "Connectivity", &connectivity, &[cells], compress)?;
+        write_dataset(&g, "Offsets", &offsets, &[cells + 1], compress)?;
     }
 
     let point_data = vtk
@@ -276,18 +383,19 @@ fn write_contents(file: &File, frame: &Frame) -> Result<(), String> {
         .ctx("cannot create /VTKHDF/PointData")?;
     for a in &frame.arrays {
         let shape: &[usize] = if a.components == 1 { &[n] } else { &[n, a.components] };
+        let r = || rows(Some(&a.name), &format!("PointData/{}", a.name));
         let ds = match &a.data {
-            ArrayData::F32(v) => write_dataset(&point_data, &a.name, v, shape)?,
-            ArrayData::U32(v) => write_dataset(&point_data, &a.name, v, shape)?,
-            ArrayData::U8(v) => write_dataset(&point_data, &a.name, v, shape)?,
+            ArrayData::F32(v) => write_point_dataset(&point_data, &a.name, v, shape, compress, r())?,
+            ArrayData::U32(v) => write_point_dataset(&point_data, &a.name, v, shape, compress, r())?,
+            ArrayData::U8(v) => write_point_dataset(&point_data, &a.name, v, shape, compress, r())?,
         };
         let unit: VarLenUnicode = a.unit.parse().map_err(|e| format!("unit of {:?}: {e}", a.name))?;
         write_scalar_attr(&ds, "unit", &unit)?;
     }
 
     let field_data = vtk.create_group("FieldData").ctx("cannot create /VTKHDF/FieldData")?;
-    write_dataset(&field_data, "time", &[frame.time], &[1])?;
-    write_dataset(&field_data, "step", &[step], &[1])?;
+    write_dataset(&field_data, "time", &[frame.time], &[1], false)?;
+    write_dataset(&field_data, "step", &[step], &[1], false)?;
     Ok(())
 }
 
@@ -299,14 +407,108 @@ fn write_scalar_attr<T: H5Type>(loc: &Location, name: &str, value: &T) -> Result
         .ctx(format_args!("cannot write attribute {}@{name}", loc.name()))
 }
 
-/// A contiguous dataset of `shape` holding `data` (row-major).
-fn write_dataset<T: H5Type>(group: &Group, name: &str, data: &[T], shape: &[usize]) -> Result<Dataset, String> {
+/// Values per chunk of a compressed dataset (256 KiB of f32).
+const CHUNK_VALUES: usize = 1 << 16;
+
+/// A dataset of `shape` holding `data` (row-major): contiguous, or with
+/// `compress` chunked by rows, shuffled and deflated.
+fn write_dataset<T: H5Type>(
+    group: &Group,
+    name: &str,
+    data: &[T],
+    shape: &[usize],
+    compress: bool,
+) -> Result<Dataset, String> {
     let what = || format!("cannot write {}/{name}", group.name());
-    let ds = group.new_dataset::<T>().shape(shape).create(name).ctx(what())?;
+    let mut builder = group.new_dataset::<T>();
+    if compress && !data.is_empty() {
+        let row: usize = shape[1..].iter().product::<usize>().max(1);
+        let mut chunk = shape.to_vec();
+        chunk[0] = (CHUNK_VALUES / row).clamp(1, shape[0]);
+        builder = builder.chunk(chunk).shuffle().deflate(DEFLATE_LEVEL);
+    }
+    let ds = builder.shape(shape).create(name).ctx(what())?;
     if !data.is_empty() {
         ds.as_writer().write_raw(data).ctx(what())?;
     }
     Ok(ds)
+}
+
+/// A point dataset whose shared rows are another file's.
+struct Rows<'a> {
+    /// `/OwnRows`, where the frame's own rows go.
+    own: &'a Group,
+    /// The dataset of the own rows, from the root.
+    own_path: String,
+    shared: &'a SharedRows<'a>,
+    /// The dataset in the shared file, from its root.
+    shared_path: String,
+}
+
+/// Rows `rows` of a dataset of `shape` (all of its other dimensions).
+fn row_selection(rows: Range<usize>, shape: &[usize]) -> Selection {
+    let mut s = vec![SliceOrIndex::from(rows)];
+    s.extend(shape[1..].iter().map(|&c| SliceOrIndex::from(0..c)));
+    Selection::from(Hyperslab::from(s))
+}
+
+/// A point dataset (one row per point): as [`write_dataset`], or with
+/// `rows` a virtual dataset whose shared rows map to the shared file and
+/// whose other rows are stored in `/OwnRows` (module doc).
+fn write_point_dataset<T: H5Type + Copy>(
+    group: &Group,
+    name: &str,
+    data: &[T],
+    shape: &[usize],
+    compress: bool,
+    rows: Option<Rows>,
+) -> Result<Dataset, String> {
+    let Some(r) = rows else {
+        return write_dataset(group, name, data, shape, compress);
+    };
+    let row: usize = shape[1..].iter().product();
+    let (n, shared) = (shape[0], r.shared.rows.clone());
+    let (before, len) = (shared.start, shared.len());
+    let mut own_values = Vec::with_capacity(data.len() - len * row);
+    own_values.extend_from_slice(&data[..before * row]);
+    own_values.extend_from_slice(&data[shared.end * row..]);
+    let own_n = n - len;
+    let mut own_shape = shape.to_vec();
+    own_shape[0] = own_n;
+    let own_group = if r.own_path.contains("/PointData/") {
+        r.own.group("PointData").ctx(format_args!("cannot open /{OWN_ROWS}/PointData"))?
+    } else {
+        r.own.clone()
+    };
+    write_dataset(&own_group, name, &own_values, &own_shape, compress)?;
+    let mut shared_shape = shape.to_vec();
+    shared_shape[0] = len;
+    let mut builder = group.new_dataset::<T>().shape(shape);
+    if before > 0 {
+        let sel = row_selection(0..before, shape);
+        builder = builder.virtual_map(".", &r.own_path, own_shape.clone(), sel.clone(), shape.to_vec(), sel);
+    }
+    if shared.end < n {
+        builder = builder.virtual_map(
+            ".",
+            &r.own_path,
+            own_shape.clone(),
+            row_selection(before..own_n, shape),
+            shape.to_vec(),
+            row_selection(shared.end..n, shape),
+        );
+    }
+    if len > 0 {
+        builder = builder.virtual_map(
+            r.shared.file,
+            &r.shared_path,
+            shared_shape,
+            row_selection(0..len, shape),
+            shape.to_vec(),
+            row_selection(shared, shape),
+        );
+    }
+    builder.create(name).ctx(format_args!("cannot write {}/{name} (virtual)", group.name()))
 }
 
 fn read_file(file: &File) -> Result<Frame, String> {

@@ -320,6 +320,10 @@ impl SolidModel for Mixed {
         &self.v
     }
 
+    fn substeps(&self) -> u32 {
+        self.granular.substeps
+    }
+
     fn respond(
         &mut self,
         solids: &SolidStore,

@@ -128,6 +128,9 @@ pub struct StepStats {
     pub cg_iterations: u32,
     /// Relative residual |r|/|b| after the elastic solve.
     pub cg_residual: f32,
+    /// Explicit sub-steps of the granular continuum within the step (0
+    /// without granular solids).
+    pub granular_substeps: u32,
     /// The term of the time step rule that set the next step's dt (`None`
     /// where it is not known: before the first step of a resumed run).
     pub next_dt_limit: Option<DtLimit>,

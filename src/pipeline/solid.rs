@@ -83,6 +83,12 @@ pub trait SolidModel: Send + Sync {
     /// by default.
     fn wall_contact(&self, _solids: &mut SolidStore, _near: &Current) {}
 
+    /// Explicit sub-steps the last [`SolidModel::predict`] took (the
+    /// granular continuum's); 0 for a model without them.
+    fn substeps(&self) -> u32 {
+        0
+    }
+
     /// Bytes held.
     fn bytes(&self) -> usize;
 }

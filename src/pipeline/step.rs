@@ -271,6 +271,7 @@ fn step_passes(
         let cg = solid::predict(p, solids, model, terms.as_ref().and_then(|t| t.pore_stress), &near, dt, tm);
         st.cg_iterations = cg.iterations;
         st.cg_residual = cg.residual;
+        st.granular_substeps = model.substeps();
     }
     // Alg. 1: a^press, the pressure solve with pressure boundaries (P-Eqs.
     // 25-29), in which the bodies give way with their compliance; Alg. 2's

@@ -1,7 +1,7 @@
 //! Pass 2 (PHYSICS.md §6 4a-b; P §5, §6.1): the current volumes
 //! V = V0 / sum_j V0_j W_ij of the fluid, the active walls and the solids
-//! (pressure boundaries, PHYSICS.md §2.3), and the densities m / V of the
-//! output.
+//! (pressure boundaries, PHYSICS.md §2.3), and the densities of the output
+//! (the fluid's: its outer mixture's rest density times V0 / V).
 
 use super::phases::PhaseState;
 use super::timing::{pass, PassTimes};
@@ -84,8 +84,26 @@ pub(super) fn volumes<'a>(
             vol_b_full[b as usize] = vol_b[k];
             walls.density[b as usize] = rho_ref * sigma_b[k];
         }
+        // Output density: the outer mixture's rest density times sigma =
+        // V0 / V (the solve's compression), or for a wholly absorbed
+        // particle its inner mixture's rest density. (m / V mixed the whole
+        // particle's mass, inner fluid included, with the outer volume,
+        // faded by `iisph::row_weight`: 1.8e6 kg/m^3 at alpha_f 0.507.)
+        let (alpha, beta, rho_k) = (&fluid.alpha, &fluid.beta, &p.phase_density);
         fluid.density.par_iter_mut().zip(vm.par_iter_mut()).enumerate().for_each(|(i, (d, vm))| {
-            *d = if vol[i] > 0.0 { ph.mass[i] / vol[i] } else { ph.rest_density[i] };
+            let (mut outer, mut inner, mut beta_f) = (0.0f32, 0.0f32, 0.0f32);
+            for k in 0..rho_k.len() {
+                outer += alpha[k][i] * rho_k[k];
+                inner += beta[k][i] * rho_k[k];
+                beta_f += beta[k][i];
+            }
+            *d = if ph.alpha_f[i] > 0.0 {
+                outer / ph.alpha_f[i] * sigma[i]
+            } else if beta_f > 0.0 {
+                inner / beta_f
+            } else {
+                ph.rest_density[i]
+            };
             *vm = if ph.mass[i] > 0.0 { vol[i] / ph.mass[i] } else { 0.0 };
         });
     });

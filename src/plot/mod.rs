@@ -1,14 +1,27 @@
-//! Plots of a run's `stats.csv` (`porosph plot`): four panels over the run,
-//! drawn with plotters into an RGB buffer and written as PNG like the
-//! renderer's pictures ([`Image`]).
+//! Plots of a run's `stats.csv` (`porosph plot`): seven panels over
+//! simulated time ([`PANELS`], placed by [`layout`]), drawn with plotters
+//! into an RGB buffer and written as PNG like the renderer's pictures
+//! ([`Image`]).
 //!
-//! - time step: `dt` over simulated time;
-//! - pressure solve: the solver iterations (`iterations` and any
-//!   `*_iterations`) and `density_error` over simulated time;
+//! - time step: `dt`;
+//! - pressure solve: the fluid solver's iterations (`iterations` and any
+//!   `*_iterations` but the solids') and `density_error`;
 //! - phase volumes: every `volume_*` column as its change from the first
-//!   row, percent;
-//! - time per pass: the `ms_*` columns but `ms_step`, stacked over the
-//!   step, with `ms_step` (the whole step) as a line over them.
+//!   row, percent: a phase's whole volume solid, its outer part dashed, its
+//!   inner (absorbed) part dotted;
+//! - mass drift: every `mass_*` column as its relative change from the
+//!   first row;
+//! - porous solids: `absorbed_<solid>` (litres, solid lines) and
+//!   `saturation_<solid>` (right axis, dashed) per porous solid;
+//! - solid solver: the elastic solve's `cg_iterations` and the granular
+//!   continuum's `granular_substeps`;
+//! - time per pass: the `ms_*` columns but `ms_step`, stacked, with
+//!   `ms_step` (the whole step) as a line over them.
+//!
+//! A phase's lines take the phase's colour ([`PlotOptions::phase_colors`],
+//! from the run's `scene.toml`). Lines that lie on each other stay
+//! visible: each later line of a panel is drawn narrower than the one
+//! before, so the earlier ones show as a rim around it.
 //!
 //! Columns are found by name in the header, so columns added later show up
 //! by themselves. Long runs are reduced to about one point per pixel
@@ -20,25 +33,85 @@ use crate::io::StatsTable;
 use crate::render::Image;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt;
 use std::ops::Range;
 use std::sync::OnceLock;
 
-/// Size of the plot picture.
+/// Size of the plot picture, and the phases' colours.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PlotOptions {
     /// Width, pixels.
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
+    /// Line colour of each phase by name, sRGB ([`phase_colors`]); phases
+    /// not listed take the palette's colours.
+    pub phase_colors: Vec<(String, [u8; 3])>,
 }
 
 impl Default for PlotOptions {
     fn default() -> Self {
-        Self { width: 1600, height: 1000 }
+        Self { width: 1600, height: 1400, phase_colors: Vec::new() }
     }
+}
+
+/// The phases' colours of a scene file's text (`[[phase]]` `name` and
+/// `color`, linear RGB as the renderer reads them) as sRGB bytes, in scene
+/// order; a text that is not TOML, or phases without a colour, give none.
+pub fn phase_colors(scene_text: &str) -> Vec<(String, [u8; 3])> {
+    let Ok(doc) = scene_text.parse::<toml::Table>() else { return Vec::new() };
+    let Some(phases) = doc.get("phase").and_then(|p| p.as_array()) else { return Vec::new() };
+    phases
+        .iter()
+        .filter_map(|p| {
+            let name = p.get("name")?.as_str()?.to_string();
+            let c = p.get("color")?.as_array()?;
+            let mut rgb = [0u8; 3];
+            for (k, v) in rgb.iter_mut().enumerate() {
+                let x = c.get(k)?;
+                *v = linear_to_srgb8(x.as_float().or_else(|| x.as_integer().map(|i| i as f64))?);
+            }
+            Some((name, rgb))
+        })
+        .collect()
+}
+
+/// A linear RGB component as an sRGB byte.
+fn linear_to_srgb8(c: f64) -> u8 {
+    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (255.0 * s).round() as u8
+}
+
+/// The panels, in the order of [`layout`].
+pub const PANELS: [&str; 7] =
+    ["Time step", "Pressure solve", "Phase volumes", "Mass drift", "Porous solids", "Solid solver", "Time per pass"];
+
+/// Where the panels of [`PANELS`] go in a picture of `width` x `height`:
+/// `[x, y, w, h]` in pixels each. Under the title, three rows of two
+/// panels, and the time per pass across the bottom row.
+pub fn layout(width: u32, height: u32) -> [[u32; 4]; 7] {
+    let title = title_height(height);
+    let row = (height - title) / 4;
+    let half = width / 2;
+    let cell = |k: u32| {
+        let (c, r) = (k % 2, k / 2);
+        [c * half, title + r * row, if c == 0 { half } else { width - half }, row]
+    };
+    [cell(0), cell(1), cell(2), cell(3), cell(4), cell(5), [0, title + 3 * row, width, height - title - 3 * row]]
+}
+
+/// Height of the title band, pixels.
+fn title_height(height: u32) -> u32 {
+    (2.2 * fonts_for(height).base).round() as u32
+}
+
+fn fonts_for(height: u32) -> Fonts {
+    // A panel row is a quarter of the picture.
+    Fonts { base: (f64::from(height) / 88.0).clamp(9.0, 40.0) }
 }
 
 /// Smallest picture that leaves room for the panels' text, pixels.
@@ -111,6 +184,37 @@ struct Series {
     label: String,
     color: RGBColor,
     points: Vec<(f64, f64)>,
+    dash: Dash,
+}
+
+/// How a line is drawn.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Dash {
+    Solid,
+    /// Dashes of 3 line widths, gaps of 2.
+    Dashed,
+    /// Dashes of 1 line width, gaps of 1.5.
+    Dotted,
+}
+
+impl Series {
+    fn new(label: impl Into<String>, color: RGBColor, points: Vec<(f64, f64)>) -> Self {
+        Series { label: label.into(), color, points, dash: Dash::Solid }
+    }
+}
+
+/// The phases' colours, by phase name.
+#[derive(Clone, Copy)]
+struct Colors<'a>(&'a [(String, [u8; 3])]);
+
+impl Colors<'_> {
+    /// The colour of `phase`, or else palette colour `k`.
+    fn of(self, phase: &str, k: usize) -> RGBColor {
+        match self.0.iter().find(|(n, _)| n == phase) {
+            Some((_, [r, g, b])) => RGBColor(*r, *g, *b),
+            None => palette(k),
+        }
+    }
 }
 
 /// Text sizes, pixels, from the picture height.
@@ -146,19 +250,30 @@ pub fn plot(table: &StatsTable, title: &str, opts: &PlotOptions) -> Result<Image
         )));
     }
     let need = |name: &str| table.column(name).ok_or_else(|| PlotError(format!("no `{name}` column")));
-    let (step, time) = (need("step")?, need("time")?);
+    need("step")?;
+    let time = need("time")?;
     register_font()?;
-    let fonts = Fonts { base: (f64::from(h) / 55.0).clamp(9.0, 40.0) };
+    let fonts = fonts_for(h);
+    let colors = Colors(&opts.phase_colors);
     let mut rgb = vec![255u8; 3 * w as usize * h as usize];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         root.fill(&WHITE)?;
-        let root = root.titled(title, (FAMILY, 1.3 * fonts.base))?;
-        let panels = root.split_evenly((2, 2));
-        time_step(&panels[0], table, time, fonts)?;
-        pressure_solve(&panels[1], table, time, fonts)?;
-        volumes(&panels[2], table, time, fonts)?;
-        pass_times(&panels[3], table, step, fonts)?;
+        let at = Pos::new(HPos::Center, VPos::Center);
+        let style = TextStyle::from((FAMILY, 1.3 * fonts.base).into_font()).pos(at);
+        root.draw(&Text::new(title.to_string(), (w as i32 / 2, title_height(h) as i32 / 2), style))?;
+        let rects = layout(w, h);
+        let panel = |k: usize| {
+            let [x, y, pw, ph] = rects[k];
+            root.clone().shrink((x, y), (pw, ph))
+        };
+        time_step(&panel(0), table, time, fonts)?;
+        pressure_solve(&panel(1), table, time, fonts)?;
+        volumes(&panel(2), table, time, colors, fonts)?;
+        mass_drift(&panel(3), table, time, colors, fonts)?;
+        porous_solids(&panel(4), table, time, fonts)?;
+        solid_solver(&panel(5), table, time, fonts)?;
+        pass_times(&panel(6), table, time, fonts)?;
         root.present()?;
     }
     Ok(Image { width: w, height: h, rgb })
@@ -178,6 +293,8 @@ fn tick_format(range: &Range<f64>) -> impl Fn(&f64) -> String {
     let scientific = big >= 1e5 || (big > 0.0 && big < 1e-3);
     let decimals = if span > 0.0 { ((-span.log10()).ceil() + 2.0).clamp(0.0, 12.0) as usize } else { 2 };
     move |v: &f64| {
+        // A tick at 0 that rounding moved off it.
+        let v = &if span > 0.0 && v.abs() < 1e-9 * span { 0.0 } else { *v };
         let s = if scientific { format!("{v:.2e}") } else { format!("{v:.decimals$}") };
         let s = if !scientific && s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { &s };
         if s == "-0" {
@@ -288,9 +405,13 @@ fn missing(area: &Area<'_>, caption: &str, why: &str, fonts: Fonts) -> Result<()
     Ok(())
 }
 
+/// A legend entry: label, colour, line style.
+type Entry<'a> = (&'a str, RGBColor, Dash);
+
 /// Splits a legend column for `entries` off the right of `area`, draws
-/// the legend there (first entry on top) and returns the rest.
-fn with_legend<'a>(area: &Area<'a>, entries: &[(&str, RGBColor)], fonts: Fonts) -> Result<Area<'a>, PlotError> {
+/// the legend there (first entry on top; a swatch for a solid line, its
+/// dashes or dots for the others) and returns the rest.
+fn with_legend<'a>(area: &Area<'a>, entries: &[Entry<'_>], fonts: Fonts) -> Result<Area<'a>, PlotError> {
     if entries.is_empty() {
         return Ok(area.clone());
     }
@@ -300,35 +421,157 @@ fn with_legend<'a>(area: &Area<'a>, entries: &[(&str, RGBColor)], fonts: Fonts) 
     let row = (0.85 * fonts.base * 1.35).min(f64::from(h.saturating_sub(top)) / entries.len() as f64).max(6.0);
     let style = TextStyle::from((FAMILY, 0.75 * row).into_font());
     let mut text_w = 0;
-    for (label, _) in entries {
+    for (label, _, _) in entries {
         text_w = text_w.max(area.estimate_text_size(label, &style)?.0);
     }
     let swatch = (0.6 * row).round() as i32;
-    let legend_w = (text_w + swatch as u32 + fonts.px(1.2)).min(w * 45 / 100);
+    let sample = 2 * swatch;
+    let legend_w = (text_w + sample as u32 + fonts.px(1.2)).min(w * 45 / 100);
     let (rest, legend) = area.split_horizontally(w - legend_w);
-    for (k, (label, color)) in entries.iter().enumerate() {
+    for (k, (label, color, dash)) in entries.iter().enumerate() {
         let y = top as i32 + (k as f64 * row) as i32;
         let pad = ((row - f64::from(swatch)) / 2.0) as i32;
-        legend.draw(&Rectangle::new([(0, y + pad), (swatch, y + pad + swatch)], color.filled()))?;
-        let at = (swatch + fonts.px(0.4) as i32, y + (row / 2.0) as i32);
+        let (y0, y1) = (y + pad, y + pad + swatch);
+        let bar = |x0: i32, x1: i32| Rectangle::new([(x0, y0 + swatch / 4), (x1, y1 - swatch / 4)], color.filled());
+        match dash {
+            Dash::Solid => legend.draw(&Rectangle::new([(0, y0), (sample, y1)], color.filled()))?,
+            Dash::Dashed => {
+                legend.draw(&bar(0, sample * 2 / 5))?;
+                legend.draw(&bar(sample * 3 / 5, sample))?;
+            }
+            Dash::Dotted => {
+                for i in 0..3 {
+                    let x0 = i * sample * 2 / 5;
+                    legend.draw(&bar(x0, x0 + sample / 5))?;
+                }
+            }
+        }
+        let at = (sample + fonts.px(0.4) as i32, y + (row / 2.0) as i32);
         legend.draw(&Text::new(label.to_string(), at, style.clone().pos(Pos::new(HPos::Left, VPos::Center))))?;
     }
     Ok(rest)
 }
 
-/// A line through `points`, drawn as separate segments: plotters joins
-/// the segments of a wide line with miters, which shoot far out of the
-/// chart at the sharp turns of noisy data. Draw [`lone_point`] too.
-fn segments(
-    points: &[(f64, f64)],
-    color: RGBColor,
-    fonts: Fonts,
-) -> impl Iterator<Item = PathElement<(f64, f64)>> + '_ {
-    let style = color.stroke_width((fonts.base / 9.0).round().max(1.0) as u32);
-    points.windows(2).map(move |w| PathElement::new(vec![w[0], w[1]], style))
+fn entries(series: &[Series]) -> Vec<Entry<'_>> {
+    series.iter().map(|s| (s.label.as_str(), s.color, s.dash)).collect()
 }
 
-/// A dot for a line of one point, which [`segments`] cannot show.
+/// Line width of lines, pixels.
+fn line_width(fonts: Fonts) -> u32 {
+    (fonts.base / 9.0).round().max(1.0) as u32
+}
+
+/// The drawing of a line: its segments (solid; each drawn alone, as
+/// plotters joins the segments of a wide line with miters, which shoot far
+/// out of the chart at the sharp turns of noisy data) or its dashes, and a
+/// dot if it is one point.
+#[allow(clippy::type_complexity)]
+fn line_elements(
+    s: &Series,
+    fonts: Fonts,
+) -> (
+    Vec<PathElement<(f64, f64)>>,
+    Option<DashedPathElement<std::vec::IntoIter<(f64, f64)>, u32>>,
+    Option<Circle<(f64, f64), u32>>,
+) {
+    let width = line_width(fonts);
+    let style = s.color.stroke_width(width);
+    let (on, off) = match s.dash {
+        Dash::Solid => (0, 0),
+        Dash::Dashed => (3 * width + 4, 2 * width + 3),
+        Dash::Dotted => (width + 1, 2 * width + 3),
+    };
+    let dot = lone_point(&s.points, s.color, fonts);
+    if on == 0 {
+        (s.points.windows(2).map(|w| PathElement::new(vec![w[0], w[1]], style)).collect(), None, dot)
+    } else {
+        (Vec::new(), Some(DashedPathElement::new(s.points.clone(), on, off, style)), dot)
+    }
+}
+
+/// For each line: its place in the group of lines that lie on it (within
+/// 2 pixels everywhere, in `pixels`) and the group's size (1: alone).
+fn coincident(pixels: &[Vec<(i32, i32)>]) -> Vec<(usize, usize)> {
+    let close = |a: &[(i32, i32)], b: &[(i32, i32)]| {
+        a.len() == b.len()
+            && a.len() > 1
+            && a.iter().zip(b).all(|(p, q)| (p.0 - q.0).abs() <= 1 && (p.1 - q.1).abs() <= 2)
+    };
+    let mut group: Vec<usize> = (0..pixels.len()).collect();
+    for j in 0..pixels.len() {
+        if let Some(i) = (0..j).find(|&i| group[i] == i && close(&pixels[i], &pixels[j])) {
+            group[j] = i;
+        }
+    }
+    (0..pixels.len())
+        .map(|k| {
+            let g = group[k];
+            let place = (0..k).filter(|&i| group[i] == g).count();
+            (place, group.iter().filter(|&&h| h == g).count())
+        })
+        .collect()
+}
+
+/// Draws `series` on `chart`: alone, as [`line_elements`] says; lines that
+/// lie on each other ([`coincident`]) in turns along their common path,
+/// each in its colour, so that every one shows.
+fn draw_lines(chart: &mut Chart<'_, '_>, series: &[&Series], fonts: Fonts) -> Result<(), PlotError> {
+    let pixels: Vec<Vec<(i32, i32)>> =
+        series.iter().map(|s| s.points.iter().map(|p| chart.as_coord_spec().translate(p)).collect()).collect();
+    let groups = coincident(&pixels);
+    for (k, s) in series.iter().enumerate() {
+        let (place, size) = groups[k];
+        if size > 1 {
+            let area = chart.plotting_area().strip_coord_spec();
+            let width = line_width(fonts);
+            let turn = f64::from(8 * width + 6);
+            let style = s.color.stroke_width(width);
+            let base = area.get_base_pixel();
+            for (a, b) in turns(&pixels[k], place, size, turn) {
+                let at = |p: (f64, f64)| ((p.0.round() as i32) - base.0, (p.1.round() as i32) - base.1);
+                area.draw(&PathElement::new(vec![at(a), at(b)], style))?;
+            }
+        } else {
+            let (solid, dashed, dot) = line_elements(s, fonts);
+            chart.draw_series(solid)?;
+            chart.draw_series(dashed)?;
+            chart.draw_series(dot)?;
+        }
+    }
+    Ok(())
+}
+
+/// The pieces of the polyline `path` (pixels) that are turn `place` of
+/// `size`, each turn `len` pixels long along the path.
+fn turns(path: &[(i32, i32)], place: usize, size: usize, len: f64) -> Vec<((f64, f64), (f64, f64))> {
+    let period = len * size as f64;
+    let (on0, on1) = (len * place as f64, len * (place + 1) as f64);
+    let mut out = Vec::new();
+    let mut s0 = 0.0;
+    for w in path.windows(2) {
+        let (a, b) = ((f64::from(w[0].0), f64::from(w[0].1)), (f64::from(w[1].0), f64::from(w[1].1)));
+        let l = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        let at = |s: f64| {
+            let t = if l > 0.0 { (s - s0) / l } else { 0.0 };
+            (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1))
+        };
+        let mut t = s0;
+        while t < s0 + l {
+            let r = t.rem_euclid(period);
+            if r >= on0 && r < on1 {
+                let end = (t + on1 - r).min(s0 + l);
+                out.push((at(t), at(end)));
+                t = end.max(t + 1e-9);
+            } else {
+                t += if r < on0 { on0 - r } else { period - r + on0 };
+            }
+        }
+        s0 += l;
+    }
+    out
+}
+
+/// A dot for a line of one point, which segments cannot show.
 fn lone_point(points: &[(f64, f64)], color: RGBColor, fonts: Fonts) -> Option<Circle<(f64, f64), u32>> {
     (points.len() == 1).then(|| Circle::new(points[0], fonts.px(0.3).max(2), color.filled()))
 }
@@ -394,44 +637,93 @@ fn line_panel(
     legend: Legend,
     fonts: Fonts,
 ) -> Result<(), PlotError> {
-    let entries: Vec<(&str, RGBColor)> = series.iter().map(|s| (s.label.as_str(), s.color)).collect();
-    let plot_area =
-        if legend == Legend::Always || entries.len() > 1 { with_legend(area, &entries, fonts)? } else { area.clone() };
+    let e = entries(series);
+    let plot_area = if legend == Legend::Always || e.len() > 1 { with_legend(area, &e, fonts)? } else { area.clone() };
     let y = y_range(extent(series.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), from_zero);
     let mut chart = chart(&plot_area, caption, (x, y), false, fonts)?;
     axes(&mut chart, (x_desc, y_desc), fonts)?;
-    for s in series {
-        chart.draw_series(segments(&s.points, s.color, fonts))?;
-        chart.draw_series(lone_point(&s.points, s.color, fonts))?;
+    draw_lines(&mut chart, &series.iter().collect::<Vec<_>>(), fonts)
+}
+
+/// Lines on a left axis and lines on a right axis, with one legend.
+#[allow(clippy::too_many_arguments)]
+fn two_axis_panel(
+    area: &Area<'_>,
+    caption: &str,
+    (x_desc, y_desc, y2_desc): (&str, &str, &str),
+    x: Range<f64>,
+    left: &[Series],
+    (right, right_range): (&[Series], Option<Range<f64>>),
+    fonts: Fonts,
+) -> Result<(), PlotError> {
+    let mut e = entries(left);
+    e.extend(entries(right));
+    let plot_area = with_legend(area, &e, fonts)?;
+    let y = y_range(extent(left.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), true);
+    let y2 =
+        right_range.unwrap_or_else(|| y_range(extent(right.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), true));
+    let y2_tick = tick_format(&y2);
+    let mut chart = chart(&plot_area, caption, (x.clone(), y), true, fonts)?.set_secondary_coord(x, y2);
+    axes(&mut chart, (x_desc, y_desc), fonts)?;
+    chart
+        .configure_secondary_axes()
+        .y_desc(y2_desc)
+        .y_label_formatter(&y2_tick)
+        .label_style(fonts.label())
+        .axis_desc_style(fonts.desc())
+        .y_labels(6)
+        .draw()?;
+    for s in right {
+        let (solid, dashed, dot) = line_elements(s, fonts);
+        chart.draw_secondary_series(solid)?;
+        chart.draw_secondary_series(dashed)?;
+        chart.draw_secondary_series(dot)?;
     }
-    Ok(())
+    draw_lines(&mut chart, &left.iter().collect::<Vec<_>>(), fonts)
+}
+
+/// The columns whose names start with `prefix`, with the rest of the name.
+fn columns_with<'a>(table: &'a StatsTable, prefix: &str) -> Vec<(&'a str, &'a [f64])> {
+    table
+        .columns
+        .iter()
+        .zip(&table.values)
+        .filter_map(|(c, v)| c.strip_prefix(prefix).map(|name| (name, v.as_slice())))
+        .collect()
+}
+
+/// Whether a column has a usable value other than 0.
+fn any_nonzero(v: &[f64]) -> bool {
+    v.iter().any(|&x| usable(x) && x != 0.0)
 }
 
 /// `dt` over time, ms.
 fn time_step(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
-    const CAPTION: &str = "Time step";
+    const CAPTION: &str = PANELS[0];
     let Some(dt) = table.column("dt") else { return missing(area, CAPTION, "no dt column", fonts) };
-    let s = Series { label: "dt".into(), color: palette(0), points: envelope(time, dt, |v| 1e3 * v, bins_of(area)) };
+    let s = Series::new("dt", palette(0), envelope(time, dt, |v| 1e3 * v, bins_of(area)));
     line_panel(area, CAPTION, ("time (s)", "dt (ms)"), x_range(time), &[s], true, Legend::Several, fonts)
 }
 
-/// Solver iterations (left axis) and density error (right axis) over time.
+/// Columns of the solid solver, not of the fluid's pressure solve.
+const SOLID_SOLVER: [&str; 2] = ["cg_iterations", "granular_substeps"];
+
+/// The fluid solver's iterations (left axis) and density error (right
+/// axis) over time.
 fn pressure_solve(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
-    const CAPTION: &str = "Pressure solve";
+    const CAPTION: &str = PANELS[1];
     let bins = bins_of(area);
     let iterations: Vec<Series> = table
         .columns
         .iter()
         .zip(&table.values)
-        .filter(|(c, _)| *c == "iterations" || c.ends_with("_iterations"))
+        .filter(|(c, _)| (*c == "iterations" || c.ends_with("_iterations")) && !SOLID_SOLVER.contains(&c.as_str()))
         .enumerate()
-        .map(|(k, (c, v))| Series { label: c.clone(), color: palette(k), points: envelope(time, v, |v| v, bins) })
+        .map(|(k, (c, v))| Series::new(c.clone(), palette(k), envelope(time, v, |v| v, bins)))
         .collect();
-    let error = table.column("density_error").map(|e| Series {
-        label: "density error (right)".into(),
-        color: palette(3),
-        points: envelope(time, e, |v| 100.0 * v, bins),
-    });
+    let error = table
+        .column("density_error")
+        .map(|e| Series::new("density error (right)", palette(3), envelope(time, e, |v| 100.0 * v, bins)));
     let x = x_range(time);
     let Some(mut error) = error else {
         if iterations.is_empty() {
@@ -444,55 +736,56 @@ fn pressure_solve(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Font
         let desc = ("time (s)", "density error (%)");
         return line_panel(area, CAPTION, desc, x, &[error], true, Legend::Several, fonts);
     }
-    let mut entries: Vec<(&str, RGBColor)> = iterations.iter().map(|s| (s.label.as_str(), s.color)).collect();
-    entries.push((error.label.as_str(), error.color));
-    let plot_area = with_legend(area, &entries, fonts)?;
-    let y = y_range(extent(iterations.iter().flat_map(|s| s.points.iter().map(|p| &p.1))), true);
-    let y2 = y_range(extent(error.points.iter().map(|p| &p.1)), true);
-    let y2_tick = tick_format(&y2);
-    let mut chart = chart(&plot_area, CAPTION, (x.clone(), y), true, fonts)?.set_secondary_coord(x, y2);
-    axes(&mut chart, ("time (s)", "iterations"), fonts)?;
-    chart
-        .configure_secondary_axes()
-        .y_desc("density error (%)")
-        .y_label_formatter(&y2_tick)
-        .label_style(fonts.label())
-        .axis_desc_style(fonts.desc())
-        .y_labels(6)
-        .draw()?;
-    chart.draw_secondary_series(segments(&error.points, error.color, fonts))?;
-    chart.draw_secondary_series(lone_point(&error.points, error.color, fonts))?;
-    for s in &iterations {
-        chart.draw_series(segments(&s.points, s.color, fonts))?;
-        chart.draw_series(lone_point(&s.points, s.color, fonts))?;
+    let desc = ("time (s)", "iterations", "density error (%)");
+    two_axis_panel(area, CAPTION, desc, x, &iterations, (&[error], None), fonts)
+}
+
+/// The phase of a `volume_*` column's rest and its line style: a phase's
+/// whole volume solid, its outer part dashed, its inner part dotted.
+fn volume_phase(name: &str) -> (&str, Dash) {
+    if let Some(p) = name.strip_prefix("outer_") {
+        (p, Dash::Dashed)
+    } else if let Some(p) = name.strip_prefix("inner_") {
+        (p, Dash::Dotted)
+    } else {
+        (name, Dash::Solid)
     }
-    Ok(())
+}
+
+/// The phase names of `names` (column name rests), in order of first
+/// appearance: a phase's palette index when it has no colour.
+fn phase_index(names: &[&str]) -> impl Fn(&str) -> usize {
+    let mut phases: Vec<String> = Vec::new();
+    for n in names {
+        let p = volume_phase(n).0.to_string();
+        if !phases.contains(&p) {
+            phases.push(p);
+        }
+    }
+    move |p: &str| phases.iter().position(|q| q == p).unwrap_or(0)
 }
 
 /// Every `volume_*` column as its change from the first row, in percent
-/// of the reference [`volume_reference`] gives.
-fn volumes(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
-    const CAPTION: &str = "Phase volumes";
-    let cols: Vec<(&str, &[f64])> = table
-        .columns
-        .iter()
-        .zip(&table.values)
-        .filter_map(|(c, v)| c.strip_prefix("volume_").map(|name| (name, v.as_slice())))
-        .collect();
+/// of the reference [`volume_reference`] gives; in its phase's colour.
+fn volumes(area: &Area<'_>, table: &StatsTable, time: &[f64], colors: Colors, fonts: Fonts) -> Result<(), PlotError> {
+    const CAPTION: &str = PANELS[2];
+    let cols = columns_with(table, "volume_");
     if cols.is_empty() {
         return missing(area, CAPTION, "no volume_* columns", fonts);
     }
     let first_value = |v: &[f64]| v.iter().copied().find(|x| usable(*x));
     let first = |name: &str| cols.iter().find(|c| c.0 == name).and_then(|c| first_value(c.1));
     let largest_first = cols.iter().filter_map(|c| first_value(c.1)).fold(0.0f64, |m, x| m.max(x.abs()));
+    let index = phase_index(&cols.iter().map(|c| c.0).collect::<Vec<_>>());
     let bins = bins_of(area);
     let series: Vec<Series> = cols
         .iter()
-        .enumerate()
-        .map(|(k, (name, v))| {
+        .map(|(name, v)| {
             let v0 = first_value(v).unwrap_or(0.0);
             let (reference, label) = volume_reference(name, &first, largest_first);
-            Series { label, color: palette(k), points: envelope(time, v, |x| 100.0 * (x - v0) / reference, bins) }
+            let (phase, dash) = volume_phase(name);
+            let points = envelope(time, v, |x| 100.0 * (x - v0) / reference, bins);
+            Series { label, color: colors.of(phase, index(phase)), points, dash }
         })
         .collect();
     let first_step = table.column("step").and_then(first_value).unwrap_or(0.0);
@@ -527,19 +820,116 @@ fn volume_reference(name: &str, first: &dyn Fn(&str) -> Option<f64>, largest_fir
     }
 }
 
-/// The `ms_*` columns but `ms_step`, stacked over the step (column order,
+/// Every `mass_*` column as its change from the first row, relative to
+/// the first value (or to the largest first value where that is 0).
+fn mass_drift(
+    area: &Area<'_>,
+    table: &StatsTable,
+    time: &[f64],
+    colors: Colors,
+    fonts: Fonts,
+) -> Result<(), PlotError> {
+    const CAPTION: &str = PANELS[3];
+    let cols = columns_with(table, "mass_");
+    if cols.is_empty() {
+        return missing(area, CAPTION, "no mass_* columns", fonts);
+    }
+    let first_value = |v: &[f64]| v.iter().copied().find(|x| usable(*x));
+    let largest = cols.iter().filter_map(|c| first_value(c.1)).fold(0.0f64, |m, x| m.max(x.abs()));
+    let bins = bins_of(area);
+    let series: Vec<Series> = cols
+        .iter()
+        .enumerate()
+        .map(|(k, (phase, v))| {
+            let v0 = first_value(v).unwrap_or(0.0);
+            let reference = if v0 != 0.0 {
+                v0.abs()
+            } else if largest > 0.0 {
+                largest
+            } else {
+                1.0
+            };
+            let drift = |x: f64| (x - v0) / reference;
+            let worst = v.iter().map(|&x| drift(x)).filter(|d| usable(*d)).fold(0.0f64, |m, d| m.max(d.abs()));
+            let label = format!("{phase} (max |drift| {worst:.1e})");
+            Series::new(label, colors.of(phase, k), envelope(time, v, drift, bins))
+        })
+        .collect();
+    let desc = ("time (s)", "relative mass change");
+    line_panel(area, CAPTION, desc, x_range(time), &series, false, Legend::Always, fonts)
+}
+
+/// Per porous solid: the liquid it holds (`absorbed_*`, litres, left
+/// axis) and its mean saturation (`saturation_*`, right axis, dashed).
+fn porous_solids(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
+    const CAPTION: &str = PANELS[4];
+    let (absorbed, saturation) = (columns_with(table, "absorbed_"), columns_with(table, "saturation_"));
+    if absorbed.is_empty() && saturation.is_empty() {
+        return missing(area, CAPTION, "no porous solids (absorbed_* columns)", fonts);
+    }
+    let bins = bins_of(area);
+    let mut names: Vec<&str> = absorbed.iter().chain(&saturation).map(|c| c.0).collect();
+    names.dedup();
+    let index = |n: &str| names.iter().position(|m| *m == n).unwrap_or(0);
+    let left: Vec<Series> = absorbed
+        .iter()
+        .map(|(n, v)| Series::new(format!("{n}: absorbed"), palette(index(n)), envelope(time, v, |x| 1e3 * x, bins)))
+        .collect();
+    let right: Vec<Series> = saturation
+        .iter()
+        .map(|(n, v)| Series {
+            label: format!("{n}: saturation (right)"),
+            color: palette(index(n)),
+            points: envelope(time, v, |x| x, bins),
+            dash: Dash::Dashed,
+        })
+        .collect();
+    // Saturation is a volume fraction: its axis is 0 to 1, which also keeps
+    // its line off the absorbed volume's (the two are proportional).
+    let desc = ("time (s)", "absorbed liquid (L)", "mean saturation");
+    two_axis_panel(area, CAPTION, desc, x_range(time), &left, (&right, Some(0.0..1.0)), fonts)
+}
+
+/// The solid solver: the elastic solve's CG iterations and the granular
+/// continuum's sub-steps per step (left out when 0 throughout).
+fn solid_solver(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
+    const CAPTION: &str = PANELS[5];
+    let labels = [("cg_iterations", "elastic CG iterations"), ("granular_substeps", "granular sub-steps")];
+    let bins = bins_of(area);
+    let series: Vec<Series> = labels
+        .iter()
+        .enumerate()
+        .filter_map(|(k, (c, label))| {
+            let v = table.column(c).filter(|v| any_nonzero(v))?;
+            Some(Series::new(*label, palette(k), envelope(time, v, |x| x, bins)))
+        })
+        .collect();
+    if series.is_empty() {
+        let any = labels.iter().any(|(c, _)| table.column(c).is_some());
+        let why = if any { "no solid solver work (no solids)" } else { "no cg_iterations or granular_substeps column" };
+        return missing(area, CAPTION, why, fonts);
+    }
+    let desc = ("time (s)", "per step");
+    line_panel(area, CAPTION, desc, x_range(time), &series, true, Legend::Always, fonts)
+}
+
+/// The legend name of pass `p`'s time: `elasticity` is the solid model's
+/// pass, elastic or granular.
+fn pass_label(p: &str) -> &str {
+    match p {
+        "elasticity" => "solid model",
+        _ => p,
+    }
+}
+
+/// The `ms_*` columns but `ms_step`, stacked over time (column order,
 /// first at the bottom), and `ms_step` as a line. Passes that never took
 /// time (0 throughout, such as the mixture passes of a one-phase run) are
 /// left out.
-fn pass_times(area: &Area<'_>, table: &StatsTable, step: &[f64], fonts: Fonts) -> Result<(), PlotError> {
-    const CAPTION: &str = "Time per pass";
-    let passes: Vec<(&str, &[f64])> = table
-        .columns
-        .iter()
-        .zip(&table.values)
-        .filter_map(|(c, v)| c.strip_prefix("ms_").filter(|p| *p != "step").map(|p| (p, v.as_slice())))
-        .filter(|(_, v)| v.iter().any(|&x| usable(x) && x != 0.0))
-        .collect();
+fn pass_times(area: &Area<'_>, table: &StatsTable, time: &[f64], fonts: Fonts) -> Result<(), PlotError> {
+    const CAPTION: &str = PANELS[6];
+    let passes: Vec<(&str, &[f64])> =
+        columns_with(table, "ms_").into_iter().filter(|(p, v)| *p != "step" && any_nonzero(v)).collect();
     let total = table.column("ms_step");
     if passes.is_empty() && total.is_none() {
         let any = table.columns.iter().any(|c| c.starts_with("ms_"));
@@ -547,7 +937,7 @@ fn pass_times(area: &Area<'_>, table: &StatsTable, step: &[f64], fonts: Fonts) -
         return missing(area, CAPTION, why, fonts);
     }
     let per = rows_per_bin(table.rows(), bins_of(area));
-    let x = bin_means(step, per);
+    let x = bin_means(time, per);
     // Running sums, bottom to top.
     let mut stacked: Vec<Vec<f64>> = Vec::with_capacity(passes.len());
     for (_, v) in &passes {
@@ -561,15 +951,15 @@ fn pass_times(area: &Area<'_>, table: &StatsTable, step: &[f64], fonts: Fonts) -
     let top = stacked.last().into_iter().chain(&total).flatten();
     let y = y_range(extent(top), true);
     // Legend: top of the stack first, as it is drawn.
-    let mut entries: Vec<(&str, RGBColor)> = Vec::new();
+    let mut e: Vec<Entry<'_>> = Vec::new();
     if total.is_some() {
-        entries.push(("whole step", BLACK));
+        e.push(("whole step", BLACK, Dash::Solid));
     }
-    entries.extend(passes.iter().enumerate().rev().map(|(k, (p, _))| (*p, palette(k))));
-    let plot_area = with_legend(area, &entries, fonts)?;
+    e.extend(passes.iter().enumerate().rev().map(|(k, (p, _))| (pass_label(p), palette(k), Dash::Solid)));
+    let plot_area = with_legend(area, &e, fonts)?;
     let caption = if per > 1 { format!("{CAPTION} (mean of {per} steps)") } else { CAPTION.to_string() };
     let mut chart = chart(&plot_area, &caption, (x_range(&x), y), false, fonts)?;
-    axes(&mut chart, ("step", "ms"), fonts)?;
+    axes(&mut chart, ("time (s)", "ms"), fonts)?;
     // The highest first; each lower one over it.
     for (k, top) in stacked.iter().enumerate().rev() {
         let points = x.iter().copied().zip(top.iter().copied()).filter(|(a, _)| usable(*a));
@@ -630,8 +1020,32 @@ mod tests {
             .map(String::from)
             .to_vec();
         let t = StatsTable { values: vec![Vec::new(); columns.len()], columns, torn_last_line: false };
-        let img = plot(&t, "empty", &PlotOptions { width: 400, height: 300 }).expect("a picture");
+        let opts = PlotOptions { width: 400, height: 300, ..PlotOptions::default() };
+        let img = plot(&t, "empty", &opts).expect("a picture");
         assert_eq!((img.width, img.height), (400, 300));
+    }
+
+    #[test]
+    fn lines_on_each_other_take_turns() {
+        let flat = vec![(0, 50), (100, 50), (200, 50)];
+        let other = vec![(0, 10), (100, 90), (200, 10)];
+        let g = coincident(&[flat.clone(), other, flat.clone(), vec![(0, 51), (100, 49), (200, 50)]]);
+        assert_eq!(g, [(0, 3), (0, 1), (1, 3), (2, 3)]);
+        // Turns of 10 px, 3 lines: line 1 has [10, 20), [40, 50), ... of 200 px.
+        let t = turns(&flat, 1, 3, 10.0);
+        assert_eq!(t.len(), 7);
+        assert_eq!(t[0], ((10.0, 50.0), (20.0, 50.0)));
+        // Across the joint at 100 px: [100, 110) in two pieces.
+        assert!(t.contains(&((100.0, 50.0), (100.0, 50.0))) || t.contains(&((100.0, 50.0), (110.0, 50.0))));
+        let covered: f64 = (0..3).flat_map(|k| turns(&flat, k, 3, 10.0)).map(|(a, b)| b.0 - a.0).sum();
+        assert!((covered - 200.0).abs() < 1e-9, "{covered}");
+    }
+
+    #[test]
+    fn phase_colours_are_srgb_of_the_scenes_linear_colours() {
+        let c = phase_colors("[[phase]]\nname = \"w\"\ncolor = [0.0, 0.5, 1]\n[[phase]]\nname = \"x\"\n");
+        assert_eq!(c, [("w".to_string(), [0, 188, 255])]);
+        assert!(phase_colors("not toml [").is_empty());
     }
 
     #[test]

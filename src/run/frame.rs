@@ -32,13 +32,21 @@ fn array(name: &str, unit: &str, components: usize, data: ArrayData) -> PointArr
 }
 
 impl Simulation {
-    /// The current state as a frame: fluid particles first, then walls,
-    /// then solids. Solid particles carry `stress` (von Mises, Pa) and
-    /// `strain_trace`, `saturation`, `pore_pressure` (Pa) and, granular ones,
-    /// `plastic_strain`; those are 0 on fluid and walls. Fluid particles carry `alpha` and `beta` (outer and
-    /// inner fractions, K components each, 0 elsewhere). Solids have the
-    /// density of their body; their `color` goes from dry to wet with the
-    /// saturation, in sand colours for granular ones.
+    /// The current state as a frame: fluid particles first, then walls
+    /// ([`Simulation::wall_rows`]), then solids. Solid particles carry
+    /// `stress` (von Mises, Pa) and `strain_trace`, `saturation`,
+    /// `pore_pressure` (Pa) and, granular ones, `plastic_strain`; those are
+    /// 0 on fluid and walls. Fluid particles carry `alpha` and `beta` (outer
+    /// and inner fractions, K components each in the scene's phase order, 0
+    /// elsewhere) and the same per phase by name, `alpha_<phase>` and
+    /// `beta_<phase>`. `density` (kg/m^3): of a fluid particle, the rest
+    /// density of its outer (free) mixture times sigma = V0 / V, the volume
+    /// ratio the pressure solve sees (below the rest density at a free
+    /// surface, where the kernel support is partly empty); of a wholly
+    /// absorbed particle, its inner mixture's rest density. Of a wall, the
+    /// density of the fluid it stands in for (the pressure boundary's);
+    /// of a solid, its body's density. Solids' `color` goes from dry to wet
+    /// with the saturation, in sand colours for granular ones.
     pub fn frame(&self) -> Frame {
         let (f, w, s) = (&self.fluid, &self.walls, &self.solids);
         let (nf, nw, ns) = (f.len(), w.len(), s.len());
@@ -73,6 +81,21 @@ impl Simulation {
             beta.extend(f.beta.iter().map(|b| b[i]));
         }
         beta.resize(k * total, 0.0);
+        // alpha_<phase>, beta_<phase>: one component of alpha or beta each.
+        let per_phase = |name: &str, all: &[Vec<f32>]| -> Vec<PointArray> {
+            self.scene
+                .phases
+                .iter()
+                .zip(all)
+                .map(|(ph, v)| {
+                    let mut data = v.clone();
+                    data.resize(total, 0.0);
+                    array(&format!("{name}_{}", ph.name), "", 1, ArrayData::F32(data))
+                })
+                .collect()
+        };
+        let alpha_named = per_phase("alpha", &f.alpha);
+        let beta_named = per_phase("beta", &f.beta);
         let mut color = Vec::with_capacity(3 * total);
         for i in 0..nf {
             let mut c = [0.0f32; 3];
@@ -99,25 +122,33 @@ impl Simulation {
             };
             color.extend((0..3).map(|c| dry[c] + t * (wet[c] - dry[c])));
         }
-        Frame {
-            time: self.time,
-            step: self.step,
-            points,
-            arrays: vec![
-                array("velocity", "m/s", 3, ArrayData::F32(velocity)),
-                array("pressure", "Pa", 1, ArrayData::F32(cat(&f.pressure, &w.pressure, &s.pressure))),
-                array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density, &solid_density))),
-                array("stress", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.stress, &[]))),
-                array("strain_trace", "", 1, ArrayData::F32(cat(&zero_fw, &s.strain_trace, &[]))),
-                array("saturation", "", 1, ArrayData::F32(cat(&zero_fw, &s.saturation, &[]))),
-                array("pore_pressure", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.pore_pressure, &[]))),
-                array("plastic_strain", "", 1, ArrayData::F32(cat(&zero_fw, &s.plastic_strain, &[]))),
-                array("alpha", "", k, ArrayData::F32(alpha)),
-                array("beta", "", k, ArrayData::F32(beta)),
-                array("color", "", 3, ArrayData::F32(color)),
-                array("kind", "", 1, ArrayData::U8(kinds)),
-                array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).chain(&s.id).copied().collect())),
-            ],
-        }
+        let mut arrays = vec![
+            array("velocity", "m/s", 3, ArrayData::F32(velocity)),
+            array("pressure", "Pa", 1, ArrayData::F32(cat(&f.pressure, &w.pressure, &s.pressure))),
+            array("density", "kg/m^3", 1, ArrayData::F32(cat(&f.density, &w.density, &solid_density))),
+            array("stress", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.stress, &[]))),
+            array("strain_trace", "", 1, ArrayData::F32(cat(&zero_fw, &s.strain_trace, &[]))),
+            array("saturation", "", 1, ArrayData::F32(cat(&zero_fw, &s.saturation, &[]))),
+            array("pore_pressure", "Pa", 1, ArrayData::F32(cat(&zero_fw, &s.pore_pressure, &[]))),
+            array("plastic_strain", "", 1, ArrayData::F32(cat(&zero_fw, &s.plastic_strain, &[]))),
+            array("alpha", "", k, ArrayData::F32(alpha)),
+            array("beta", "", k, ArrayData::F32(beta)),
+            array("color", "", 3, ArrayData::F32(color)),
+            array("kind", "", 1, ArrayData::U8(kinds)),
+            array("id", "", 1, ArrayData::U32(f.id.iter().chain(&w.id).chain(&s.id).copied().collect())),
+        ];
+        arrays.extend(alpha_named);
+        arrays.extend(beta_named);
+        Frame { time: self.time, step: self.step, points, arrays }
+    }
+
+    /// The rows of the walls in [`Simulation::frame`].
+    pub fn wall_rows(&self) -> std::ops::Range<usize> {
+        self.fluid.len()..self.fluid.len() + self.walls.len()
     }
 }
+
+/// Point arrays of a frame whose values on the walls change from frame to
+/// frame (the pressure boundary's); the walls' other values and their
+/// positions are constant, and a run writes them once (`walls.vtkhdf`).
+pub const WALL_ARRAYS_PER_FRAME: [&str; 2] = ["pressure", "density"];

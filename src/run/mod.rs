@@ -12,14 +12,14 @@ pub mod output;
 mod summary;
 
 pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
-pub use frame::{kind, INNER_SHADE};
+pub use frame::{kind, INNER_SHADE, WALL_ARRAYS_PER_FRAME};
 pub use summary::RunSummary;
 
 use crate::backend::GPU_PASS_NAMES;
 use crate::io::checkpoint::RunInfo;
-use crate::io::{write_frame, IoError, SeriesWriter, StatsWriter};
+use crate::io::{write_frame, write_frame_as, FrameLayout, IoError, SeriesWriter, SharedRows, StatsWriter};
 use crate::pipeline::{Simulation, StepError, PASSES};
-use crate::scene::Phase;
+use crate::scene::{Phase, Solid};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -48,6 +48,9 @@ pub struct RunOptions {
     /// Testing aid: sets a fluid velocity to NaN just before the step that
     /// starts at this step number, to exercise the failure path.
     pub inject_nan_at_step: Option<u64>,
+    /// Deflate the frames (`porosph run --compress`): smaller files, a
+    /// little more time per frame.
+    pub compress: bool,
 }
 
 impl Default for RunOptions {
@@ -62,6 +65,7 @@ impl Default for RunOptions {
             keep: DEFAULT_KEEP,
             resume: None,
             inject_nan_at_step: None,
+            compress: false,
         }
     }
 }
@@ -143,14 +147,16 @@ impl From<IoError> for RunError {
     }
 }
 
-/// Header of `stats.csv` for a scene with `phases`: then per phase in
-/// scene order `volume_<phase>` (outer + inner, m^3,
+/// Header of `stats.csv` for a scene with `phases` and `solids`: then per
+/// phase in scene order `volume_<phase>` (outer + inner, m^3,
 /// [`Simulation::phase_volumes`]), `volume_outer_<phase>`,
 /// `volume_inner_<phase>` (the part inside porous solids) and
-/// `mass_<phase>` (kg), then
-/// `ms_<pass>` per pass, `ms_step`, and `gpu_ms_<pass>` (device time, 0
-/// on the CPU) per pass the GPU backend can run.
-pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
+/// `mass_<phase>` (kg), then per porous solid (`[[solid]]` with
+/// `[solid.porous]`, by name) `absorbed_<solid>` (m^3) and
+/// `saturation_<solid>` ([`porous_solids`]), then `ms_<pass>` per pass,
+/// `ms_step`, and `gpu_ms_<pass>` (device time, 0 on the CPU) per pass the
+/// GPU backend can run.
+pub fn stats_columns(phases: &[Phase], solids: &[Solid]) -> Vec<String> {
     let mut c: Vec<String> = [
         "step",
         "time",
@@ -161,6 +167,7 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
         "max_drift_speed",
         "cg_iterations",
         "cg_residual",
+        "granular_substeps",
         "fluid_particles",
     ]
     .iter()
@@ -170,15 +177,44 @@ pub fn stats_columns(phases: &[Phase]) -> Vec<String> {
     c.extend(phases.iter().map(|p| format!("volume_outer_{}", p.name)));
     c.extend(phases.iter().map(|p| format!("volume_inner_{}", p.name)));
     c.extend(phases.iter().map(|p| format!("mass_{}", p.name)));
+    let porous = || solids.iter().filter(|s| s.porous.is_some());
+    c.extend(porous().map(|s| format!("absorbed_{}", s.name)));
+    c.extend(porous().map(|s| format!("saturation_{}", s.name)));
     c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
     c.extend(GPU_PASS_NAMES.iter().map(|p| format!("gpu_ms_{p}")));
     c
 }
 
+/// Per porous solid of the scene (a `[[solid]]` with `[solid.porous]`, in
+/// scene order): the liquid it holds, sum_i S_i h^3 over its particles,
+/// m^3, and its mean saturation S = sum_k phi_k (P-Eq. 15: absorbed volume
+/// per particle volume; at most its porosity), as two lists.
+pub fn porous_solids(sim: &Simulation) -> (Vec<f64>, Vec<f64>) {
+    let n = sim.scene.solids.len();
+    let (mut sum, mut count) = (vec![0.0f64; n], vec![0usize; n]);
+    for (&b, &s) in sim.solids.body.iter().zip(&sim.solids.saturation) {
+        if let (Some(x), Some(c)) = (sum.get_mut(b as usize), count.get_mut(b as usize)) {
+            *x += f64::from(s);
+            *c += 1;
+        }
+    }
+    let cell = f64::from(sim.params.cell_volume());
+    let porous: Vec<usize> = (0..n).filter(|&b| sim.scene.solids[b].porous.is_some()).collect();
+    let absorbed = porous.iter().map(|&b| sum[b] * cell).collect();
+    let mean = porous.iter().map(|&b| if count[b] > 0 { sum[b] / count[b] as f64 } else { 0.0 }).collect();
+    (absorbed, mean)
+}
+
 fn create_dir(p: &Path) -> Result<(), IoError> {
     std::fs::create_dir_all(p).map_err(|e| IoError::new(p, format!("cannot create directory: {e}")))
 }
+
+/// The run's static walls, in `frames/`: their positions and every array
+/// but [`WALL_ARRAYS_PER_FRAME`], written once; each frame maps its wall
+/// rows to this file (`io::SharedRows`), so ParaView and `porosph render`
+/// still see the walls in every frame.
+pub const WALLS_FILE: &str = "walls.vtkhdf";
 
 /// The number `n` of a frame file `frame_<n>.vtkhdf`.
 fn frame_number(name: &str) -> Option<u64> {
@@ -222,13 +258,14 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
     let series_path = frames_dir.join("frames.vtkhdf.series");
     let (mut stats, mut series, mut frames, mut next_frame) = match opts.resume {
         None => (
-            StatsWriter::create(&stats_path, &stats_columns(&sim.scene.phases))?,
+            StatsWriter::create(&stats_path, &stats_columns(&sim.scene.phases, &sim.scene.solids))?,
             SeriesWriter::new(&series_path),
             0u64,
             0.0f64,
         ),
         Some(c) => {
-            let stats = StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases), sim.step)?;
+            let stats =
+                StatsWriter::append(&stats_path, &stats_columns(&sim.scene.phases, &sim.scene.solids), sim.step)?;
             let mut series = SeriesWriter::open_existing(&series_path)?;
             let later = remove_later_frames(&frames_dir, &mut series, c.frames)?;
             if later > 0 && !opts.quiet {
@@ -275,9 +312,25 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         b
     };
 
+    // The walls once (again if a resumed run's file went missing; they
+    // never move, so it is the same file).
+    let walls_path = frames_dir.join(WALLS_FILE);
+    if !sim.walls.is_empty() && (opts.resume.is_none() || !walls_path.is_file()) {
+        let layout = FrameLayout { compress: opts.compress, shared: None };
+        write_frame_as(&walls_path, &sim.frame().rows(sim.wall_rows()), &layout)?;
+    }
     let write = |sim: &Simulation, frames: &mut u64, series: &mut SeriesWriter| -> Result<(), IoError> {
         let name = format!("frame_{:05}.vtkhdf", *frames);
-        write_frame(&frames_dir.join(&name), &sim.frame())?;
+        let frame = sim.frame();
+        let static_arrays: Vec<&str> =
+            frame.arrays.iter().map(|a| a.name.as_str()).filter(|n| !WALL_ARRAYS_PER_FRAME.contains(n)).collect();
+        // The fluid comes first: its count may change, the walls' does not.
+        let shared = (!sim.walls.is_empty()).then(|| SharedRows {
+            file: WALLS_FILE,
+            rows: sim.wall_rows(),
+            arrays: &static_arrays,
+        });
+        write_frame_as(&frames_dir.join(&name), &frame, &FrameLayout { compress: opts.compress, shared })?;
         series.add(&name, sim.time)?;
         *frames += 1;
         Ok(())
@@ -335,6 +388,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.max_drift_speed as f64,
             st.cg_iterations as f64,
             st.cg_residual as f64,
+            st.granular_substeps as f64,
             n,
         ];
         let (outer, inner) = sim.phase_volumes_split();
@@ -342,6 +396,9 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         row.extend(outer);
         row.extend(inner);
         row.extend(sim.phase_masses());
+        let (absorbed, saturation) = porous_solids(sim);
+        row.extend(absorbed);
+        row.extend(saturation);
         row.extend(st.times.ms);
         row.push(ms_step);
         row.extend(

@@ -7,7 +7,7 @@
 //!
 //! What porosph writes into `OUT`: `scene.toml`, `stats.csv`, `plots.png`;
 //! `frames/` (`frame_<n>.vtkhdf`, `frame_<n>_failed.vtkhdf`,
-//! `frames.vtkhdf.series`, and `frame_<n>.png` pictures that `porosph
+//! `walls.vtkhdf`, `frames.vtkhdf.series`, and `frame_<n>.png` pictures that `porosph
 //! render` puts beside a frame); `checkpoints/` (`ckpt_<step>.h5`,
 //! `ckpt_<step>_failed.h5`); `render/` (`frame_<n>.png`); and the
 //! `.<name>.tmp` files of an atomic write that was cut short.
@@ -26,6 +26,8 @@ pub struct Survey {
     pub frames: usize,
     /// Whether `frames/frames.vtkhdf.series` is there.
     pub series: bool,
+    /// Whether `frames/walls.vtkhdf` (the run's static walls) is there.
+    pub walls: bool,
     /// Checkpoints (`checkpoints/*.h5`, diagnostic ones included).
     pub checkpoints: usize,
     /// Pictures (`render/*.png`, `frames/*.png`).
@@ -126,6 +128,7 @@ pub fn survey(dir: &Path) -> Result<Option<Survey>, OutputError> {
                             match cat {
                                 Category::Frame => s.frames += 1,
                                 Category::Series => s.series = true,
+                                Category::Walls => s.walls = true,
                                 Category::Checkpoint => s.checkpoints += 1,
                                 Category::Picture => s.pictures += 1,
                             }
@@ -172,6 +175,7 @@ const TOP_FILES: [&str; 3] = ["scene.toml", "stats.csv", "plots.png"];
 enum Category {
     Frame,
     Series,
+    Walls,
     Checkpoint,
     Picture,
 }
@@ -180,6 +184,8 @@ fn frames_kind(name: &str) -> Option<(Category, bool)> {
     let cat = |n: &str| {
         if n == "frames.vtkhdf.series" {
             Some(Category::Series)
+        } else if n == super::WALLS_FILE {
+            Some(Category::Walls)
         } else if numbered(n, "frame_", "vtkhdf") {
             Some(Category::Frame)
         } else if numbered(n, "frame_", "png") {
@@ -225,6 +231,9 @@ impl Survey {
         }
         if self.series {
             parts.push("the frame series index".to_string());
+        }
+        if self.walls {
+            parts.push("the walls file".to_string());
         }
         if self.checkpoints > 0 {
             parts.push(plural(self.checkpoints, "checkpoint", "checkpoints"));
@@ -347,6 +356,8 @@ mod tests {
         assert!(matches!(frames_kind(".frame_00001.vtkhdf.tmp"), Some((Category::Frame, true))));
         assert!(matches!(frames_kind(".frames.vtkhdf.series.tmp"), Some((Category::Series, true))));
         assert!(matches!(frames_kind("frame_00001.png"), Some((Category::Picture, false))));
+        assert!(matches!(frames_kind("walls.vtkhdf"), Some((Category::Walls, false))));
+        assert!(matches!(frames_kind(".walls.vtkhdf.tmp"), Some((Category::Walls, true))));
         assert!(frames_kind("notes.txt").is_none());
         assert!(matches!(checkpoints_kind(".ckpt_00000001.h5.tmp"), Some((Category::Checkpoint, true))));
         assert!(checkpoints_kind("ckpt_1.h5.old").is_none());

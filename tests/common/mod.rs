@@ -211,3 +211,46 @@ box = { min = [0.0, 0.0, 0.0], max = [0.6, 0.5, 0.2] }
 container = true
 open_top = true
 "#;
+
+/// A water tank with a fixed porous sponge (0.1 m cube) in it, which
+/// soaks from the first steps: 2.4k fluid, 180 solid particles.
+pub const POROUS_SOAK: &str = r#"
+[simulation]
+particle_spacing = 0.015
+end_time = 1.0
+max_dt = 0.002
+frame_interval = 0.01
+
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 1.0
+
+[[wall]]
+box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.1] }
+container = true
+
+[[fluid]]
+box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.15, 0.1] }
+fractions = { water = 1.0 }
+
+[[solid]]
+name = "sponge"
+box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] }
+density = 600.0
+shear_modulus = 2e4
+lame_lambda = 1e4
+fixed = { box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] } }
+
+[solid.porous]
+porosity = 0.6
+rest_pore_pressure = 5e4
+biot_modulus = 4.9e4
+swelling = 7.5e-4
+capillarity = 2.0
+absorption = 1.0
+
+[solid.porous.phase.water]
+permeability = 1e-7
+outer_pore_pressure = 2.5e4
+"#;
