@@ -19,27 +19,79 @@
 //! Measured 2026-12-05 (commit ba4c84b; the later commits of that day do
 //! not change one-phase explicit-viscosity scenes), `bash
 //! bench/placements.sh`: 3 of 500 fail (target 0), 72 min on 2 loaded
-//! cores. Not fixed; what each is:
-//! - seed 152: a porous dumbbell mesh scaled to 7.6 cm, mu 2.6 kPa, 315
-//!   kg/m^3, half out of the water, sampled as only 42 particles. Its
-//!   absorbed fluid particles above the surface (alpha 0.62, beta 0.38)
-//!   clump (pairs 0.4 mm apart at d = 1 cm, "density" 7,000-12,000) and
-//!   accelerate steadily (max speed 0.7 -> 2.1 m/s over steps 200-240)
-//!   until step 241 explodes: the porous terms of a partly absorbed
-//!   particle in a body too thin for its kernel; root cause not found.
-//! - seed 367: a 2.2 cm dumbbell sampled as 2 solid particles, 112
-//!   kg/m^3, submerged: it shoots up at 11 m/s, later 600 m/s, and leaves
-//!   the container. A body of 2 particles has no elastic neighbourhood;
-//!   the scene could refuse such bodies (a clear error) instead.
-//! - seed 422: a 6.5 x 3.9 x 3.9 cm elastic box of 1,500 kg/m^3 resting
-//!   2.6 cm above the floor: a fluid particle leaves through the floor
-//!   (y = -0.77 m): fluid squeezed between a heavy body and a wall, the
-//!   thin-layer problem of issue 34 item 4.
+//! cores. What each is, and what became of it:
+//! - seed 152 (not fixed): a porous dumbbell mesh scaled to 7.6 cm (scale
+//!   0.34418: balls of r 1.7 cm, a bar of r 0.76 cm), mu 2.6 kPa, 315
+//!   kg/m^3, P Table 2's sponge (capillarity 2.0), sampled as 42
+//!   particles, starts submerged (centre y = 0.114). Measured (mean solid
+//!   velocity, mean y of the solid particles): it rises at up to 0.41 m/s
+//!   (step 80) and leaves the water entirely (mean y 0.196 at step 200,
+//!   its bottom about 2 cm above the surface at 0.16), holding about 21
+//!   particle volumes of absorbed water (beta-weighted velocity equal to
+//!   the body's). In the air, over steps 150-230 (0.16 s), the body and
+//!   its water decelerate upwards at only 2.6 m/s^2 (gravity 9.81) and
+//!   accelerate sideways (z) at 3.2 m/s^2, 0.30 -> 0.82 m/s: a net force
+//!   of about 0.25 N up and 0.11 N sideways on 0.034 kg with nothing to
+//!   push against. Its absorbed particles clump (pairs 0.1-0.4 mm apart,
+//!   "density" to 1e5-1e9 kg/m^3 on the output) and step 241 explodes.
+//!   The same scene with capillarity = 0 (its body floats, centre at y =
+//!   0.159-0.161 from step 210, rising at most 0.13 m/s) or without
+//!   [solid.porous] (floats at 0.160-0.167) runs 300 steps; the scene
+//!   itself still explodes at step 241 after the fix of seed 422. The
+//!   likely cause, from those runs (the net a^cap force was not summed):
+//!   the capillary acceleration a^cap_f = psi (sum_k beta_k) n_f, n_f = sum_s
+//!   V_s grad W_fs (P-Eqs. 14, 18), acts on the fluid only; the paper
+//!   applies no reaction to the solid (PHYSICS.md §4.2: momentum exchange
+//!   is one way). In a thick body n_f fades inside and the pulls on its
+//!   fluid cancel; in a body two or three particles across every absorbed
+//!   particle is at the surface, the pulls do not cancel, and the fluid
+//!   they drive pushes the solid through the pressure rows: the body
+//!   with its water propels itself. A fix is a reaction -m_f a^cap_f on
+//!   the solid particles of n_f (a departure from the paper that changes
+//!   every porous scene) or a lower bound on the size of a porous body;
+//!   neither is done.
+//! - seed 367 (refused since): a 2.2 cm dumbbell mesh (scale 0.10154)
+//!   sampled as 2 solid particles 1 cm apart, 112 kg/m^3, submerged: it
+//!   shot up at 11 m/s, later 600 m/s, and left the container (a solid
+//!   particle at x = 0.55 m after 300 steps). Each particle's only
+//!   neighbour is the other, so its gradient correction L_i (P-Eq. 4,
+//!   PHYSICS.md §3.1) is singular (the kernel falls back to L = I) and the
+//!   body has no elastic response across its axis: not a body the
+//!   model can represent. The scene loader now refuses an elastic body
+//!   with a free particle whose rest neighbours within 2 d do not span
+//!   three dimensions, naming the [[solid]] (`solid[0]`), the particle
+//!   count and the first such particle; the campaign counts a refused
+//!   scene as handled ([`the_two_particle_dumbbell_is_refused`]). At d =
+//!   2 cm it refuses 15 of seeds 1-30 (bodies of 2-8 cm are 1-4
+//!   spacings), so the CI test runs the first 30 accepted seeds.
+//! - seed 422 (fixed since): a 6.5 x 3.9 x 3.9 cm elastic box of 1,500
+//!   kg/m^3, mu 1.1e5 Pa, its bottom 2.6 cm above the floor, sinks onto
+//!   one fluid layer over the floor (box bottom at y = 0.0149 m, the layer
+//!   at 0.005). At step 81 fluid particle 2888 (y = 0.0048, density 960,
+//!   its own row at p = 0: moving between two boundaries does not change
+//!   its density) lay between four floor wall rows and four rows of the
+//!   box. Those rows rose in turn, a Jacobi mode of the pressure solve
+//!   whose eigenvalue is beyond -1 at omega = 0.5: the box's pressure
+//!   alternated 0 / 5.2e3 ... 7.7e4 Pa and the floor's 1.0e4 ... 1.0e5 /
+//!   0 over the 100 sweeps, the mean solid-row error 1e-5 / 0.013 ...
+//!   0.167. The loop's divergence guard (restart with a smaller omega)
+//!   judged the error sweep by sweep, and the error, which counts fluid
+//!   and solid rows but not wall rows, was low every other sweep, so the
+//!   guard never fired; the solve stopped at max_iterations on a sweep
+//!   with the floor at 0 Pa and the box at 7.7e4 Pa, which gave the
+//!   particle a^p_y = -4,084 m/s^2 (-8.6 m/s in the step): it crossed
+//!   the floor (y = -0.012 at step 81, -0.77 m by step 300). The guard
+//!   now takes the larger of the last two sweeps' errors
+//!   (`iisph::Divergence`), restarts at omega = 0.35 and converges; the
+//!   scene runs 300 steps with the fastest fluid particle at 1.1 m/s
+//!   (step 10) and the box resting at y = 0.0148
+//!   ([`the_heavy_box_on_one_fluid_layer_keeps_its_fluid`]).
 
 mod common;
 
 use common::{scene_text, with_threads};
 use porosph::pipeline::Simulation;
+use porosph::scene::Scene;
 use std::fmt::Write;
 
 /// SplitMix64: a small, fixed generator, so that a seed is a scene on any
@@ -66,6 +118,10 @@ impl Rng {
 }
 
 const BOX: [f64; 3] = [0.3, 0.4, 0.2];
+
+/// What the scene loader says of a body too thin for elasticity
+/// (`src/scene/parse.rs`): a refusal the campaign counts as handled.
+const REFUSED: &str = "do not span three dimensions";
 const SURFACE: f64 = 0.16;
 
 /// One body: its shape's TOML, its centre and its half extents (m).
@@ -176,11 +232,18 @@ fn placement(seed: u64, d: f64) -> String {
     s
 }
 
-/// Runs the scene of `seed` for `steps` steps; the reason it failed, if it did.
-fn run_placement(seed: u64, d: f64, steps: u64) -> Result<(), String> {
+/// Runs the scene of `seed` for `steps` steps: whether the scene was
+/// refused (a body too thin for elasticity), or the reason it failed.
+fn run_placement(seed: u64, d: f64, steps: u64) -> Result<bool, String> {
     let text = placement(seed, d);
+    let scene = match Scene::from_toml_str(&text, "<placement>") {
+        Ok(scene) => scene,
+        // A body too thin for elasticity is refused: a correct answer.
+        Err(e) if e.reason.contains(REFUSED) => return Ok(true),
+        Err(e) => return Err(e.to_string()),
+    };
     let r = std::panic::catch_unwind(|| {
-        let mut sim = Simulation::new(scene_text(&text));
+        let mut sim = Simulation::new(scene);
         let slack = d as f32;
         for _ in 0..steps {
             sim.step().map_err(|e| e.to_string())?;
@@ -200,7 +263,7 @@ fn run_placement(seed: u64, d: f64, steps: u64) -> Result<(), String> {
         Ok(())
     });
     match r {
-        Ok(r) => r,
+        Ok(r) => r.map(|()| false),
         Err(p) => Err(format!(
             "panicked: {}",
             p.downcast_ref::<String>()
@@ -213,25 +276,41 @@ fn run_placement(seed: u64, d: f64, steps: u64) -> Result<(), String> {
 
 /// Runs `seeds`, printing each failure with its scene; the failures.
 fn campaign(seeds: impl Iterator<Item = u64>, d: f64, steps: u64) -> Vec<u64> {
-    let mut failed = Vec::new();
+    let (mut failed, mut refused) = (Vec::new(), 0);
     let t = std::time::Instant::now();
     for (k, seed) in seeds.enumerate() {
-        if let Err(why) = run_placement(seed, d, steps) {
-            println!("FAILED seed {seed}: {why}\n{}\n", placement(seed, d));
-            failed.push(seed);
+        match run_placement(seed, d, steps) {
+            Ok(r) => refused += r as usize,
+            Err(why) => {
+                println!("FAILED seed {seed}: {why}\n{}\n", placement(seed, d));
+                failed.push(seed);
+            }
         }
         if (k + 1) % 25 == 0 {
-            eprintln!("{} placements, {} failed, {:.0} s", k + 1, failed.len(), t.elapsed().as_secs_f64());
+            eprintln!(
+                "{} placements, {} failed, {refused} refused, {:.0} s",
+                k + 1,
+                failed.len(),
+                t.elapsed().as_secs_f64()
+            );
         }
     }
+    println!("{refused} placements refused (a body too thin for elasticity)");
     failed
 }
 
 /// 30 fixed placements at d = 2 cm, 300 steps each (0.6 s at 2 ms): none
-/// may fail.
+/// may fail. The first 30 seeds the scene loader accepts (at 2 cm about
+/// half the bodies of 2-8 cm are too thin for elasticity and refused:
+/// 15 of seeds 1-30).
 #[test]
 fn thirty_placements_at_2_cm() {
-    let failed = with_threads(2, || campaign(1..=30, 0.02, 300));
+    let accepted = |&seed: &u64| match Scene::from_toml_str(&placement(seed, 0.02), "<placement>") {
+        Err(e) => !e.reason.contains(REFUSED),
+        Ok(_) => true,
+    };
+    let seeds: Vec<u64> = (1..).filter(accepted).take(30).collect();
+    let failed = with_threads(2, || campaign(seeds.into_iter(), 0.02, 300));
     assert!(failed.is_empty(), "failed seeds {failed:?} (scenes above)");
 }
 
@@ -256,6 +335,15 @@ fn the_issue_34_ball_half_in_the_water_runs() {
     }
 }
 
+/// Issue 34's placement 422 at d = 1 cm: a 1,500 kg/m^3 box sinks onto one
+/// fluid layer over the floor; at step 81 the pressure solve stopped on a
+/// growing mode of the floor's and the box's rows and a fluid particle
+/// left through the floor (module doc). 120 steps, past the old failure.
+#[test]
+fn the_heavy_box_on_one_fluid_layer_keeps_its_fluid() {
+    with_threads(2, || run_placement(422, 0.01, 120)).unwrap_or_else(|e| panic!("placement 422: {e}"));
+}
+
 /// The campaign of issue 34: PLACEMENTS (default 500) seeds from
 /// PLACEMENTS_FIRST (default 1) at PLACEMENTS_D m (0.01), PLACEMENTS_STEPS
 /// steps (300) each. `bash bench/placements.sh`.
@@ -270,12 +358,27 @@ fn placement_campaign() {
     assert!(failed.is_empty());
 }
 
-/// The generator is deterministic and every scene it writes is valid.
+/// The generator is deterministic and every scene it writes is valid, or
+/// refused for a body too thin for elasticity.
 #[test]
 fn placements_are_valid_scenes() {
     for seed in 1..=200 {
         assert_eq!(placement(seed, 0.02), placement(seed, 0.02));
-        porosph::scene::Scene::from_toml_str(&placement(seed, 0.02), "<placement>")
-            .unwrap_or_else(|e| panic!("seed {seed}: {e}\n{}", placement(seed, 0.02)));
+        match Scene::from_toml_str(&placement(seed, 0.02), "<placement>") {
+            Err(e) if !e.reason.contains(REFUSED) => panic!("seed {seed}: {e}\n{}", placement(seed, 0.02)),
+            _ => {}
+        }
     }
+}
+
+/// Issue 34's placement 367 at d = 1 cm: a 2.2 cm dumbbell sampled as 2
+/// particles shot up at 11 m/s and left the container. Refused now, with
+/// the [[solid]] and the reason.
+#[test]
+fn the_two_particle_dumbbell_is_refused() {
+    let Err(e) = Scene::from_toml_str(&placement(367, 0.01), "<placement>") else {
+        panic!("placement 367 accepted:\n{}", placement(367, 0.01));
+    };
+    assert_eq!(e.key, "solid[0]", "{e}");
+    assert!(e.reason.contains("sampled as 2 particle(s)") && e.reason.contains(REFUSED), "{e}");
 }

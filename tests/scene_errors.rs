@@ -843,3 +843,32 @@ fn granular_keys_are_checked() {
     );
     assert_rejected(&two, "solid[1].model", "a body is elastic or granular throughout");
 }
+
+/// An elastic solid needs a three-dimensional neighbourhood at each free
+/// particle (P-Eq. 4's gradient correction): a plate one particle thick,
+/// or a body of two particles (issue 34's placement 367), is refused with
+/// the [[solid]] at fault; two layers, or a one-layer plate whose
+/// particles are all fixed, are accepted.
+#[test]
+fn elastic_solid_one_particle_thick() {
+    let solid = |shape: &str, extra: &str| {
+        format!(
+            "{MINIMAL}\n[[solid]]\nname = \"plate\"\n{shape}\ndensity = 500.0\nshear_modulus = 1e5\n\
+             lame_lambda = 1e5\n{extra}"
+        )
+    };
+    let plate = "box = { min = [0.3, 0.1, 0.0], max = [0.5, 0.11, 0.1] }";
+    assert_rejected(
+        &solid(plate, ""),
+        "solid[0]",
+        "sampled as 200 particle(s) at particle_spacing = 0.01 m, and 200 of them",
+    );
+    assert_rejected(&solid(plate, ""), "solid[0]", "do not span three dimensions");
+    // Two particles: a sphere around two lattice points.
+    let pair = "sphere = { center = [0.305, 0.3, 0.055], radius = 0.0075 }";
+    assert_rejected(&solid(pair, ""), "solid[0]", "sampled as 2 particle(s)");
+    let thick = "box = { min = [0.3, 0.1, 0.0], max = [0.5, 0.12, 0.1] }";
+    parse(&solid(thick, "")).unwrap_or_else(|e| panic!("{e}"));
+    let fixed = "fixed = { box = { min = [0.29, 0.09, -0.01], max = [0.51, 0.12, 0.11] } }";
+    parse(&solid(plate, fixed)).unwrap_or_else(|e| panic!("{e}"));
+}

@@ -408,3 +408,85 @@ impl PointGrid {
         false
     }
 }
+
+/// A particle of an elastic body whose rest neighbourhood is flat: its
+/// neighbours in the body (closer than the kernel support H = 2 d) lie on
+/// a line or in a plane, or it has none. Its gradient correction
+/// L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1 (P-Eq. 4, PHYSICS.md
+/// §3.1) does not exist, so its strain has no response across that plane.
+pub(super) struct FlatParticle {
+    /// Index, among `shapes`, of the shape it was sampled from.
+    pub shape: usize,
+    pub position: [f32; 3],
+    /// Its neighbours in the body.
+    pub neighbours: usize,
+    /// Particles of the body, and how many of them are flat.
+    pub particles: usize,
+    pub flat: usize,
+}
+
+/// The first flat particle (see [`FlatParticle`]) of the body made of
+/// `shapes` (each with its `fixed` shape: fixed particles move as told and
+/// need no strain), sampled as [`sample_solids`] does, without the walls
+/// and other bodies that may take points away.
+pub(super) fn first_flat_particle(shapes: &[(&Shape, Option<&Shape>)], d: f64) -> Option<FlatParticle> {
+    let mut grid = PointGrid::new(d);
+    let mut points: Vec<([f32; 3], usize, bool)> = Vec::new();
+    for (k, (shape, fixed)) in shapes.iter().enumerate() {
+        let mut candidates = Vec::new();
+        filled(shape, d, &mut candidates);
+        for p in candidates {
+            if !grid.any_within(p, 0.5 * d) {
+                grid.insert(p);
+                points.push((p, k, fixed.is_some_and(|f| inside(f, p))));
+            }
+        }
+    }
+    let support = PointGrid { cell: 2.0 * d, cells: HashMap::new() };
+    let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (i, (p, _, _)) in points.iter().enumerate() {
+        cells.entry(support.key(*p)).or_default().push(i);
+    }
+    let (h2, mut first, mut flat) = (4.0 * d * d, None, 0);
+    for (i, &(p, k, fixed)) in points.iter().enumerate() {
+        if fixed {
+            continue;
+        }
+        // The scatter matrix sum_j (x_j - x_i) (x) (x_j - x_i) is singular
+        // exactly when the neighbours do not span three dimensions.
+        let (mut s, mut n) = ([[0.0f64; 3]; 3], 0);
+        let c = support.key(p);
+        for dz in -1..=1i64 {
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    for &j in cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]).map_or(&[][..], |v| v) {
+                        let v = [0, 1, 2].map(|a| f64::from(points[j].0[a]) - f64::from(p[a]));
+                        let r2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                        if j != i && r2 < h2 {
+                            n += 1;
+                            for (a, row) in s.iter_mut().enumerate() {
+                                for (b, e) in row.iter_mut().enumerate() {
+                                    *e += v[a] * v[b];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let det = s[0][0] * (s[1][1] * s[2][2] - s[1][2] * s[2][1]) - s[0][1] * (s[1][0] * s[2][2] - s[1][2] * s[2][0])
+            + s[0][2] * (s[1][0] * s[2][1] - s[1][1] * s[2][0]);
+        let scale = (s[0][0] + s[1][1] + s[2][2]) / 3.0;
+        if det <= 1e-6 * scale * scale * scale {
+            flat += 1;
+            first.get_or_insert((k, p, n));
+        }
+    }
+    first.map(|(shape, position, neighbours)| FlatParticle {
+        shape,
+        position,
+        neighbours,
+        particles: points.len(),
+        flat,
+    })
+}

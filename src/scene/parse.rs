@@ -14,6 +14,7 @@ use super::file::{
     BoxFile, CylinderFile, FluidFile, MeshFile, PhaseFile, PorousFile, SceneFile, ShapeFile, ShapeKeys, SolidFile,
     SphereFile, WallFile, WallSlipFile,
 };
+use super::geometry::{first_flat_particle, FlatParticle};
 use super::mesh::{MeshSource, TriMesh};
 use super::{
     FluidBlock, Granular, Motion, Phase, Porous, Scene, SceneError, Shape, Simulation, Solid, SolidMaterial,
@@ -237,7 +238,44 @@ impl Cx<'_> {
             }
             solids.push(solid);
         }
+        self.bodies_have_volume(&top, &solids, d)?;
         Ok(Scene { simulation, phases, fluids, walls, solids, origin: String::new(), text: String::new() })
+    }
+
+    /// Every elastic body is sampled with a three-dimensional neighbourhood
+    /// at each of its particles that is not fixed (see
+    /// [`FlatParticle`]): a body of one or two particles, or a rod or sheet
+    /// one particle thick, has no elastic response across itself, and
+    /// once it moves with the fluid nothing holds it together (issue 34's
+    /// placement 367, a 2.2 cm dumbbell sampled as 2 particles at d = 1 cm,
+    /// left the closed container at 600 m/s).
+    fn bodies_have_volume(&self, top: &KeyPath, solids: &[Solid], d: f64) -> Result<(), SceneError> {
+        let mut seen: Vec<&str> = Vec::new();
+        for s in solids {
+            if seen.contains(&s.body.as_str()) || matches!(s.model, SolidMaterial::Granular(_)) {
+                continue;
+            }
+            seen.push(&s.body);
+            let members: Vec<usize> = (0..solids.len()).filter(|&i| solids[i].body == s.body).collect();
+            let shapes: Vec<(&Shape, Option<&Shape>)> =
+                members.iter().map(|&i| (&solids[i].shape, solids[i].fixed.as_ref())).collect();
+            let Some(flat) = first_flat_particle(&shapes, d) else { continue };
+            let FlatParticle { shape, position: p, neighbours, particles, flat } = flat;
+            let i = members[shape];
+            let body = if members.len() > 1 { format!("body \"{}\"", s.body) } else { "solid".to_string() };
+            return Err(self.err(
+                &top.key("solid").index(i),
+                format!(
+                    "the {body} is sampled as {particles} particle(s) at particle_spacing = {} m, and {flat} of \
+                     them (the first at [{}, {}, {}] m, with {neighbours} neighbour(s) within the kernel support \
+                     2 d) have neighbours that do not span three dimensions, so the elastic strain (P-Eq. 4) \
+                     does not exist there; make the solid at least two particle spacings thick everywhere, or \
+                     the particle_spacing smaller",
+                    d as f32, p[0], p[1], p[2]
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// `[simulation]`: the checks that involve two settings.
