@@ -743,9 +743,12 @@ fn main() -> ExitCode {
                     .collect();
                 files.sort();
                 if !files.is_empty() {
-                    println!("example scenes in ./scenes (porosph run FILE):");
+                    println!("scene files in ./scenes (porosph run FILE):");
                     for f in files {
-                        println!("  {}", f.display());
+                        // The file's first comment line says what it is.
+                        let text = std::fs::read_to_string(&f).unwrap_or_default();
+                        let what = text.lines().next().and_then(|l| l.strip_prefix('#')).unwrap_or("").trim();
+                        println!("  {:<40} {}", f.display().to_string(), what);
                     }
                 }
             }

@@ -153,3 +153,29 @@ fn an_example_solid_comes_from_a_mesh() {
     let readme = std::fs::read_to_string(scenes_dir().join("README.md")).expect("scenes/README.md");
     assert!(readme.contains("mesh_dumbbell.toml"), "scenes/README.md does not list the mesh example");
 }
+
+/// `porosph scenes` run from a directory without `scenes/` (an installed
+/// binary) still lists every example scene that needs no mesh file, each
+/// with a one-line description, and each name runs as `porosph run NAME`
+/// (the built-in text is the file's: the same scene).
+#[test]
+fn scenes_are_listed_with_descriptions_from_anywhere() {
+    let dir = std::env::temp_dir().join(format!("porosph_scenes_list_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out =
+        std::process::Command::new(env!("CARGO_BIN_EXE_porosph")).arg("scenes").current_dir(&dir).output().unwrap();
+    assert!(out.status.success());
+    let listed = common::text(&out.stdout);
+    for f in scene_files() {
+        let text = std::fs::read_to_string(&f).unwrap();
+        if text.contains("mesh") {
+            continue;
+        }
+        let b = builtin::SCENES.iter().find(|b| b.text == text);
+        let b = b.unwrap_or_else(|| panic!("{} is not a built-in scene", f.display()));
+        let line = listed.lines().find(|l| l.split_whitespace().next() == Some(b.name));
+        let line = line.unwrap_or_else(|| panic!("`porosph scenes` does not list {}:\n{listed}", b.name));
+        assert!(line.len() > b.name.len() + 20, "no description: {line}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
