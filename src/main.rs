@@ -74,8 +74,8 @@ struct RunArgs {
     inject_nan_at_step: Option<u64>,
     /// Compress the frames (HDF5 deflate, level 4, after a byte shuffle;
     /// ParaView and h5py read them as they are): about a third of the
-    /// bytes, a little more time per frame. Resume: pass it again to keep
-    /// compressing.
+    /// bytes, a little more time per frame. Resume: a run that compressed
+    /// goes on compressing.
     #[arg(long)]
     compress: bool,
 }
@@ -488,7 +488,7 @@ fn resume_command(path: PathBuf, out: Option<PathBuf>, a: RunArgs) -> Result<(),
         keep: a.keep.unwrap_or_else(|| usize::try_from(r.keep).unwrap_or(DEFAULT_KEEP)),
         resume: Some(Continuation { frames: r.frames_written, next_frame }),
         inject_nan_at_step: a.inject_nan_at_step,
-        compress: a.compress,
+        compress: a.compress || r.compress,
     };
     a.pool()?.install(|| {
         let mut sim = Simulation::from_saved_state(ckpt.state).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -26,6 +26,7 @@ fn run_info() -> RunInfo {
         stop_step: Some(100),
         checkpoint_every: "1steps".to_string(),
         keep: 1,
+        compress: false,
     }
 }
 

@@ -25,6 +25,7 @@ fn run_info() -> RunInfo {
         stop_step: None,
         checkpoint_every: "10steps".to_string(),
         keep: 3,
+        compress: false,
     }
 }
 

@@ -448,3 +448,37 @@ fn density_is_meaningful_for_every_kind_of_particle_regression_1e6_for_partly_ab
         assert!(ok, "point {i} (kind {k}, alpha {}, beta {}): density {d}", alpha[i], beta[i]);
     }
 }
+
+/// A run written with `--compress` goes on compressing when it is resumed
+/// without the option (the checkpoint keeps it): the frames written after
+/// the resume equal those of an uncompressed run of the same steps and are
+/// smaller.
+#[test]
+fn a_compressed_run_resumes_compressed() {
+    let dir = TempDir::new("compress-resume");
+    let scene = dir.path("two_phase.toml");
+    fs::write(&scene, common::TWO_PHASE).expect("write scene");
+    let run = |name: &str, compress: bool| {
+        let out = dir.path(name);
+        let mut args = vec!["run", common::s(&scene), "--out", common::s(&out), "--steps", "8", "--quiet"];
+        args.extend(["--frame-every", "0.004", "--checkpoint-every", "2steps", "--keep", "4"]);
+        if compress {
+            args.push("--compress");
+        }
+        let r = common::porosph(&args);
+        assert!(r.status.success(), "{}", common::text(&r.stderr));
+        out
+    };
+    let (plain, packed) = (run("plain", false), run("packed", true));
+    // Resume the compressed run at step 2, without --compress: frames 2-4
+    // (t = 8 to 16 ms) are written again.
+    let ckpt = packed.join("checkpoints/ckpt_00000002.h5");
+    let r = common::porosph(&["resume", common::s(&ckpt), "--steps", "6", "--quiet"]);
+    assert!(r.status.success(), "{}", common::text(&r.stderr));
+    for n in 2..5 {
+        let name = format!("frames/frame_{n:05}.vtkhdf");
+        let (a, b) = (plain.join(&name), packed.join(&name));
+        assert_eq!(read_frame(&a).expect("plain"), read_frame(&b).expect("packed"), "frame {n}");
+        assert!(file_size(&b) < file_size(&a), "frame {n}: {} bytes resumed, {} plain", file_size(&b), file_size(&a));
+    }
+}

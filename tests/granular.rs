@@ -121,6 +121,7 @@ fn resumed_granular_run_is_bitwise_the_uninterrupted_run() {
         stop_step: None,
         checkpoint_every: "10steps".to_string(),
         keep: 1,
+        compress: false,
     };
     let dir = common::TempDir::new("granular-restart");
     let ckpt = dir.path("ckpt.h5");

@@ -136,6 +136,7 @@ fn inspect_and_resume_read_a_checkpoint_another_process_has_locked() {
         stop_step: None,
         checkpoint_every: String::new(),
         keep: 3,
+        compress: false,
     };
     write_checkpoint(&path, &sim, &info, None).unwrap();
     let _lock = Locker::new(&path);

@@ -13,7 +13,8 @@
 //! /params             attrs: the parameters porosph derived from the scene
 //!                     (h, kernel_support, gravity, max_dt, cfl, ...), units
 //! /run                attrs: where the run stands (frames written, next frame
-//!                     time, stop time or step, checkpoint schedule, keep), porosph_version
+//!                     time, stop time or step, checkpoint schedule, keep,
+//!                     compress: 1 if the frames are compressed), porosph_version
 //! /fluid/<name>       one dataset per registered fluid array: f32 or u32 [N],
 //!                     per-phase arrays f32 [K, N]; attrs unit, xxh64
 //! /walls/<name>       the same for the wall store, [N_walls]
@@ -91,6 +92,9 @@ pub struct RunInfo {
     pub checkpoint_every: String,
     /// Checkpoints kept.
     pub keep: u32,
+    /// Frames compressed (`--compress`); absent in checkpoints written
+    /// before it was stored, read as false.
+    pub compress: bool,
 }
 
 /// A checkpoint read back: the simulation state and where the run stood.
@@ -232,6 +236,7 @@ fn write_contents(file: &File, sim: &Simulation, run: &RunInfo, failure: Option<
     }
     write_str_attr(&g, "checkpoint_every", &run.checkpoint_every)?;
     write_attr(&g, "keep", &run.keep)?;
+    write_attr(&g, "compress", &u8::from(run.compress))?;
     write_str_attr(&g, "porosph_version", env!("CARGO_PKG_VERSION"))?;
 
     let fluid = file.create_group("fluid").ctx("cannot create /fluid")?;
@@ -708,6 +713,7 @@ impl<'a> Reader<'a> {
             stop_step: if has("stop_step") { Some(attr(&g, "stop_step")?) } else { None },
             checkpoint_every: attr_string(&g, "checkpoint_every")?,
             keep: attr(&g, "keep")?,
+            compress: has("compress") && attr::<u8>(&g, "compress")? != 0,
         })
     }
 

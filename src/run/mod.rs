@@ -295,6 +295,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         stop_step,
         checkpoint_every: opts.checkpoint_every.map(|c| c.to_string()).unwrap_or_default(),
         keep: u32::try_from(opts.keep).unwrap_or(u32::MAX),
+        compress: opts.compress,
     };
 
     let bar = if opts.quiet {

@@ -151,6 +151,7 @@ fn bench(a: &Args) {
         stop_step: None,
         checkpoint_every: "100steps".into(),
         keep: 3,
+        compress: false,
     };
     let write = median(time_n(a.repeat, || {
         write_checkpoint(&path, &sim, &run, None).unwrap_or_else(|e| panic!("{e}"));
