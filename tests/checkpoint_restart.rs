@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{assert_same_bits, floating_block, solid_bits, store_bits, TempDir, TWO_PHASE};
+use common::{assert_same_bits, floating_block, solid_bits, store_bits, TempDir, POROUS_SOAK, TWO_PHASE};
 use porosph::io::checkpoint::{
     load_checkpoint, phase_volumes, read_checkpoint, read_checkpoint_with, write_checkpoint, ReadMethod, RunInfo,
 };
@@ -104,50 +104,6 @@ fn resumed_run_with_a_solid_is_bitwise_the_uninterrupted_run() {
         assert_ne!(solid_bits(&start.solids), solid_bits(&straight.solids));
     });
 }
-
-/// A porous cube soaking in water (issue 5), small: a 0.3 x 0.3 x 0.1 m
-/// closed tank filled to 0.15 m, a fixed 0.1 m porous cube under water, at
-/// d = 0.015 m (959 fluid particles).
-const POROUS_SOAK: &str = r#"
-[simulation]
-particle_spacing = 0.015
-end_time = 1.0
-max_dt = 0.002
-frame_interval = 0.01
-
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 1.0
-
-[[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.3, 0.1] }
-container = true
-
-[[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.15, 0.1] }
-fractions = { water = 1.0 }
-
-[[solid]]
-name = "sponge"
-box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] }
-density = 600.0
-shear_modulus = 2e4
-lame_lambda = 1e4
-fixed = { box = { min = [0.1, 0.02, 0.0], max = [0.2, 0.12, 0.1] } }
-
-[solid.porous]
-porosity = 0.6
-rest_pore_pressure = 5e4
-biot_modulus = 4.9e4
-swelling = 7.5e-4
-capillarity = 2.0
-absorption = 1.0
-
-[solid.porous.phase.water]
-permeability = 1e-7
-outer_pore_pressure = 2.5e4
-"#;
 
 /// The same with a porous solid while it absorbs: the inner fractions beta
 /// of the fluid and the solid's saturation and pore pressure are saved, and

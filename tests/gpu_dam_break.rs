@@ -22,25 +22,7 @@ use std::collections::HashMap;
 const H: f32 = 0.01;
 
 fn scene() -> porosph::scene::Scene {
-    common::scene_text(
-        r#"[simulation]
-particle_spacing = 0.01
-end_time = 1.0
-max_dt = 0.002
-frame_interval = 1.0
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 0.01
-[[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.15, 0.2, 0.06] }
-fractions = { water = 1.0 }
-[[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.5, 0.3, 0.06] }
-container = true
-open_top = true
-"#,
-    )
+    common::scene_text(common::SMALL_DAM_BREAK)
 }
 
 struct Run {

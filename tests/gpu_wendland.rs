@@ -30,25 +30,6 @@ fn wendland(text: &str) -> porosph::scene::Scene {
     common::scene_text(&text)
 }
 
-/// tests/gpu_dam_break.rs's dam break (1,800 fluid particles, h = 1 cm).
-const DAM_BREAK: &str = r#"[simulation]
-particle_spacing = 0.01
-end_time = 1.0
-max_dt = 0.002
-frame_interval = 1.0
-[[phase]]
-name = "water"
-density = 1000.0
-viscosity = 0.01
-[[fluid]]
-box = { min = [0.0, 0.0, 0.0], max = [0.15, 0.2, 0.06] }
-fractions = { water = 1.0 }
-[[wall]]
-box = { min = [0.0, 0.0, 0.0], max = [0.5, 0.3, 0.06] }
-container = true
-open_top = true
-"#;
-
 /// Positions by particle id.
 fn positions(sim: &Simulation) -> HashMap<u32, [f32; 3]> {
     let f = &sim.fluid;
@@ -72,8 +53,8 @@ fn wendland_dam_break_on_gpu_matches_cpu() {
         }
         (positions(&sim), err / 50.0, iterations)
     };
-    let cpu = go(Simulation::new(wendland(DAM_BREAK)));
-    let mut sim = Simulation::new(wendland(DAM_BREAK));
+    let cpu = go(Simulation::new(wendland(common::SMALL_DAM_BREAK)));
+    let mut sim = Simulation::new(wendland(common::SMALL_DAM_BREAK));
     sim.use_gpu(gpu);
     let g = go(sim);
     assert_eq!(g.0.len(), cpu.0.len());

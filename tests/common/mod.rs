@@ -254,3 +254,23 @@ absorption = 1.0
 permeability = 1e-7
 outer_pore_pressure = 2.5e4
 "#;
+
+/// A small dam break (1,800 fluid particles, h = 1 cm) in an open tank, the
+/// CPU-GPU comparison scene of tests/gpu_dam_break.rs and gpu_wendland.rs.
+pub const SMALL_DAM_BREAK: &str = r#"[simulation]
+particle_spacing = 0.01
+end_time = 1.0
+max_dt = 0.002
+frame_interval = 1.0
+[[phase]]
+name = "water"
+density = 1000.0
+viscosity = 0.01
+[[fluid]]
+box = { min = [0.0, 0.0, 0.0], max = [0.15, 0.2, 0.06] }
+fractions = { water = 1.0 }
+[[wall]]
+box = { min = [0.0, 0.0, 0.0], max = [0.5, 0.3, 0.06] }
+container = true
+open_top = true
+"#;
