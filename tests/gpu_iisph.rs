@@ -196,6 +196,7 @@ fn settings(c: &Case, min: u32, max: u32, eta: f32) -> SolveSettings {
     SolveSettings {
         dt: c.dt,
         omega: 0.5,
+        chebyshev_radius: 0.0,
         min_iterations: min,
         max_iterations: max,
         max_density_error: eta,

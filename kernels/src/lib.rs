@@ -4,6 +4,7 @@
 //! lanes ([`lanes::F`]); results do not depend on the number of threads.
 
 pub mod blocks;
+pub mod chebyshev;
 pub mod drift;
 pub mod drift_momentum;
 pub mod drucker_prager;

@@ -10,6 +10,7 @@ use super::passes::{
 use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::blocks::{nblocks, sum_f64};
+use porosph_kernels::chebyshev;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, Jacobi, SolidPairs, Vel, VelMut};
@@ -149,10 +150,15 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
     // The warm start, kept for a restart with a smaller omega.
     let start = [arena.alloc_slice_copy(p), arena.alloc_slice_copy(p_active), arena.alloc_slice_copy(p_s)];
     let mut omega = s.omega;
+    let mut cheb =
+        (s.chebyshev_radius > 0.0).then(|| Chebyshev::new(arena, s.chebyshev_radius, [n, p_active.len(), ns]));
     let mut guard = iisph::Divergence::default();
     let mut report = SolveReport::default();
     let mut it = 0;
     loop {
+        if let Some(c) = cheb.as_mut() {
+            c.keep([&*p, &*p_active, &*p_s]);
+        }
         let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
         let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
         iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
@@ -177,6 +183,10 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         report.density_error = e;
         report.solid_error = e_s;
         let worst = e.max(e_s);
+        let done = it >= s.min_iterations && worst <= s.max_density_error || it >= s.max_iterations;
+        if let (Some(c), false) = (cheb.as_mut(), done) {
+            c.extrapolate([&mut *p, &mut *p_active, &mut *p_s]);
+        }
         let restart = guard.diverging(worst) && worst > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
         if restart {
             p.copy_from_slice(start[0]);
@@ -185,6 +195,7 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
             omega *= iisph::RELAXATION_BACKOFF;
             guard = iisph::Divergence::default();
             report.restarts += 1;
+            cheb = None;
         }
         for (k, &b) in sys.walls.active.iter().enumerate() {
             p_wall[b as usize] = p_active[k];
@@ -244,5 +255,46 @@ pub fn phase_vel<'a>(arena: &'a Bump, x: &'a [f32], y: &'a [f32], z: &'a [f32], 
         x: arena.alloc_slice_fill_iter(x.chunks(n.max(1))),
         y: arena.alloc_slice_fill_iter(y.chunks(n.max(1))),
         z: arena.alloc_slice_fill_iter(z.chunks(n.max(1))),
+    }
+}
+
+/// The semi-iteration's state in the Jacobi loop (`porosph_kernels::chebyshev`):
+/// the iterate before the sweep (`cur`, p_k) and the one before that
+/// (`prev`, p_{k-1}) of the fluid, active wall and solid rows.
+struct Chebyshev<'a> {
+    weights: chebyshev::Weights,
+    prev: [&'a mut [f32]; 3],
+    cur: [&'a mut [f32]; 3],
+}
+
+impl<'a> Chebyshev<'a> {
+    /// Plain sweeps before the semi-iteration starts (it then takes one
+    /// more before its first extrapolation): the warm start's first two
+    /// sweeps remove its largest local errors.
+    const PLAIN_SWEEPS: u32 = 1;
+
+    fn new(arena: &'a Bump, rho: f32, lens: [usize; 3]) -> Self {
+        let b = |k: usize| arena.alloc_slice_fill_copy(lens[k], 0.0f32);
+        Self {
+            weights: chebyshev::Weights::new(rho, Self::PLAIN_SWEEPS),
+            prev: [b(0), b(1), b(2)],
+            cur: [b(0), b(1), b(2)],
+        }
+    }
+
+    /// Keeps p_k before the sweep.
+    fn keep(&mut self, p: [&[f32]; 3]) {
+        for (c, p) in self.cur.iter_mut().zip(p) {
+            c.copy_from_slice(p);
+        }
+    }
+
+    /// After the sweep (`p` = J(p_k)): p_{k+1}.
+    fn extrapolate(&mut self, p: [&mut [f32]; 3]) {
+        let w = self.weights.after_sweep();
+        for (p, q) in p.into_iter().zip(self.prev.iter()) {
+            chebyshev::extrapolate(w, p, q);
+        }
+        std::mem::swap(&mut self.prev, &mut self.cur);
     }
 }

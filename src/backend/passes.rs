@@ -94,6 +94,10 @@ pub struct SolveSettings {
     pub dt: f32,
     /// Relaxation omega.
     pub omega: f32,
+    /// The spectral radius estimate of the Chebyshev semi-iteration over
+    /// the sweeps, or 0 for plain relaxed Jacobi
+    /// (`porosph_kernels::chebyshev`).
+    pub chebyshev_radius: f32,
     pub min_iterations: u32,
     pub max_iterations: u32,
     /// Stop at this mean density error (fraction).

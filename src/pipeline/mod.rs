@@ -51,6 +51,9 @@ pub struct Params {
     pub max_iterations: u32,
     /// Jacobi relaxation omega.
     pub omega: f32,
+    /// Spectral radius estimate of the Chebyshev semi-iteration over the
+    /// Jacobi sweeps, 0 = off (`simulation.chebyshev_radius`).
+    pub chebyshev_radius: f32,
     /// Rest density rho_k of each phase, kg/m^3.
     pub phase_density: Vec<f32>,
     /// Viscosity mu_k of each phase, Pa s.

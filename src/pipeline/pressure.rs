@@ -211,6 +211,7 @@ pub(super) fn solve<'a>(
         settings: SolveSettings {
             dt,
             omega: p.omega,
+            chebyshev_radius: p.chebyshev_radius,
             min_iterations: p.min_iterations,
             max_iterations: p.max_iterations,
             max_density_error: p.max_density_error,

@@ -37,6 +37,7 @@ impl Params {
             min_iterations: s.min_iterations,
             max_iterations: s.max_iterations,
             omega: s.omega,
+            chebyshev_radius: s.chebyshev_radius,
             phase_density: scene.phases.iter().map(|p| p.density).collect(),
             phase_viscosity: scene.phases.iter().map(|p| p.viscosity).collect(),
             phase_drift_tau: scene.phases.iter().map(|p| p.drift_tau).collect(),

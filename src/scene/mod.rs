@@ -100,6 +100,18 @@ pub struct Simulation {
     #[serde(default = "defaults::omega")]
     #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
     pub omega: f32,
+    /// The Chebyshev semi-iteration of the pressure solve
+    ///
+    /// An estimate rho of the relaxed Jacobi sweeps' spectral radius, in
+    /// [0, 1); 0 (default) for plain relaxed Jacobi. With rho > 0 each
+    /// sweep after the second is extrapolated from the last two
+    /// (kernels/src/chebyshev.rs): deep pools converge in a third to a
+    /// half of the sweeps (0.95: Example 1 at d = 5 mm, 15.5 -> 6.1 per
+    /// step; bench/RESULTS.md). A smaller rho than the true one only
+    /// accelerates less. CPU backend only: the GPU pressure solve refuses it.
+    #[serde(default)]
+    #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 1))]
+    pub chebyshev_radius: f32,
     /// The drift relaxation weight tau in m^2/(Pa s) (= m^3 s/kg)
     ///
     /// tau of P-Eq. 11 (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a
