@@ -15,17 +15,38 @@ fn pressure_is_rho_g_depth_after_one_second() {
 }
 
 /// The same column with the Chebyshev semi-iteration over the Jacobi
-/// sweeps (`chebyshev_radius = 0.95`, kernels/src/chebyshev.rs): the same
+/// sweeps (`chebyshev_radius = 0.9`, kernels/src/chebyshev.rs): the same
 /// criteria against hydrostatics, and fewer sweeps than plain Jacobi over
-/// the same second (both counted here; deterministic, not a timing).
-/// Measured 2026-12-05: 2,6xx against 1,1xx sweeps in 500 steps, see the
-/// printed lines. The bound, at most 0.7 of Jacobi's, fails when the
-/// extrapolation is dropped (1.0).
+/// the same second (both counted here; deterministic, not a timing). The
+/// bound, at most 0.7 of Jacobi's, fails when the extrapolation is dropped.
+///
+/// Measured 2026-12-05 (sweeps in 1 s; the deep particles' mean pressure
+/// against rho g depth, time mean over 0.8-1 s and its range over single
+/// steps; mean absolute error per particle over mean rho g depth):
+///
+/// | radius | sweeps | time mean | single steps | per particle |
+/// |---|---|---|---|---|
+/// | 0 (plain Jacobi) | 10,814 | +0.55 % | -5.4 / +5.5 % | 15.3 % |
+/// | 0.8 | 6,887 | +0.71 % | -4.9 / +7.2 % | 15.8 % |
+/// | 0.9 | 5,262 | +0.59 % | -7.2 / +8.7 % | 16.2 % |
+/// | 0.95 | 4,145 | +0.48 % | -15 / +19 % | 16.7 % |
+/// | 0.98 | 3,448 | +0.68 % | -56 / +47 % | 26.3 % |
+///
+/// Why the spread grows with the radius: the smooth pressure modes that
+/// barely change the density (a uniform offset of a closed pool is one:
+/// sum_j V_j grad W_ij is about 0 in the bulk) are what the 0.1 % density
+/// criterion does not fix; plain Jacobi hardly moves them from the warm
+/// start (0.5 of the last pressure), which anchors them from step to
+/// step, and the semi-iteration moves them by more. A fuller warm start
+/// does not help: 0.75 or 1.0 of the last pressure gives 30 % / 55 % per
+/// particle (Jacobi and Chebyshev alike; the halving is what lets their
+/// noise decay). Counting expansion in the stop criterion (|residual| of
+/// rows with p > 0) changes nothing here (4,148 sweeps, -14 / +19 %).
 #[test]
 fn chebyshev_column_is_rho_g_depth_in_fewer_sweeps() {
     let jacobi = hydrostatic_column(0.0);
-    let chebyshev = hydrostatic_column(0.95);
-    println!("sweeps in 1 s: Jacobi {jacobi}, Chebyshev (rho 0.95) {chebyshev}");
+    let chebyshev = hydrostatic_column(0.9);
+    println!("sweeps in 1 s: Jacobi {jacobi}, Chebyshev (rho 0.9) {chebyshev}");
     assert!((chebyshev as f64) <= 0.7 * jacobi as f64, "Chebyshev {chebyshev} sweeps against Jacobi's {jacobi}");
 }
 

@@ -105,10 +105,12 @@ pub struct Simulation {
     /// An estimate rho of the relaxed Jacobi sweeps' spectral radius, in
     /// [0, 1); 0 (default) for plain relaxed Jacobi. With rho > 0 each
     /// sweep after the second is extrapolated from the last two
-    /// (kernels/src/chebyshev.rs): deep pools converge in a third to a
-    /// half of the sweeps (0.95: Example 1 at d = 5 mm, 15.5 -> 6.1 per
-    /// step; bench/RESULTS.md). A smaller rho than the true one only
-    /// accelerates less. CPU backend only: the GPU pressure solve refuses it.
+    /// (kernels/src/chebyshev.rs): deep pools converge in about half of
+    /// the sweeps (0.9: Example 1 at d = 5 mm, 15.5 -> 8.4 per step;
+    /// bench/RESULTS.md), but the pressure's smooth part varies more from
+    /// step to step (tests/hydrostatic.rs: more so from 0.95 on). A smaller
+    /// rho than the true one only accelerates less. CPU backend only: the
+    /// GPU pressure solve refuses it.
     #[serde(default)]
     #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 1))]
     pub chebyshev_radius: f32,
