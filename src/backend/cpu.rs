@@ -292,8 +292,8 @@ impl<'a> Chebyshev<'a> {
     /// After the sweep (`p` = J(p_k)): p_{k+1}.
     fn extrapolate(&mut self, p: [&mut [f32]; 3]) {
         let w = self.weights.after_sweep();
-        for (p, q) in p.into_iter().zip(self.prev.iter()) {
-            chebyshev::extrapolate(w, p, q);
+        for ((p, q), c) in p.into_iter().zip(self.prev.iter()).zip(self.cur.iter()) {
+            chebyshev::extrapolate(w, p, c, q);
         }
         std::mem::swap(&mut self.prev, &mut self.cur);
     }
