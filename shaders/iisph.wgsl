@@ -32,13 +32,20 @@ struct IisphParams {
     omega: f32,
     max_density_error: f32,
     rows_active: f32,
+    // The Chebyshev semi-iteration (kernels/src/chebyshev.rs): the radius
+    // estimate (0: plain Jacobi) and the plain sweeps before it starts.
+    chebyshev_radius: f32,
+    chebyshev_plain: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 struct Status {
     iterations: u32,
     done: u32,
     density_error: f32,
-    pad: u32,
+    // The Chebyshev weight of the last sweep (1 while plain).
+    weight: f32,
 }
 
 // Reduction: 256 threads x 4 consecutive values per workgroup.
@@ -76,6 +83,10 @@ const MIN_DIAG: f32 = 1.17549435e-38;
 @group(0) @binding(15) var<storage, read> bf_ranges: array<vec2<u32>>;
 @group(0) @binding(16) var<storage, read_write> partials: array<f32>;
 @group(0) @binding(17) var<storage, read_write> status: Status;
+// The semi-iteration's iterates (the one before the last, the last) of
+// the fluid rows and of the active wall rows (by active index).
+@group(0) @binding(18) var<storage, read_write> cheb: array<vec2<f32>>;
+@group(0) @binding(19) var<storage, read_write> cheb_wall: array<vec2<f32>>;
 
 var<workgroup> scratch: array<f32, RED_WG>;
 
@@ -246,5 +257,55 @@ fn mean_error(@builtin(local_invocation_index) t: u32) {
         if ((it >= P.min_iterations && e <= P.max_density_error) || it >= P.max_iterations) {
             status.done = 1u;
         }
+        // chebyshev::Weights::after_sweep.
+        let r2 = P.chebyshev_radius * P.chebyshev_radius;
+        var w = 1.0;
+        if (it == P.chebyshev_plain + 2u) {
+            w = 2.0 / (2.0 - r2);
+        } else if (it > P.chebyshev_plain + 2u) {
+            w = 4.0 / (4.0 - r2 * status.weight);
+        }
+        status.weight = w;
     }
+}
+
+// chebyshev::extrapolate on one row: `pj` the plain sweep's pressure, `c2`
+// (the iterate before the last, the last); returns the row's new pressure
+// and leaves (the last, the new) in c2.
+fn chebyshev_row(pj: f32, c2: ptr<function, vec2<f32>>) -> f32 {
+    let q = (*c2).x;
+    let c = (*c2).y;
+    let w = status.weight;
+    var np = pj;
+    if (w != 1.0 && q > 0.0 && c > 0.0) {
+        np = max(w * (pj - q) + q, 0.0);
+    }
+    *c2 = vec2<f32>(c, np);
+    return np;
+}
+
+// After mean_error, when the sweep was not the last: the fluid rows'
+// extrapolation (only dispatched with P.chebyshev_radius > 0).
+@compute @workgroup_size(64)
+fn chebyshev_fluid(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = linear_index(gid, nwg);
+    if (i >= P.n_fluid || status.done != 0u) {
+        return;
+    }
+    var c2 = cheb[i];
+    p[i] = chebyshev_row(p[i], &c2);
+    cheb[i] = c2;
+}
+
+// The same for the active wall rows.
+@compute @workgroup_size(64)
+fn chebyshev_walls(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let k = linear_index(gid, nwg);
+    if (k >= P.n_active || status.done != 0u) {
+        return;
+    }
+    let b = active_walls[k];
+    var c2 = cheb_wall[k];
+    p_wall[b] = chebyshev_row(p_wall[b], &c2);
+    cheb_wall[k] = c2;
 }

@@ -57,26 +57,3 @@ fn backend_gpu_runs_a_wendland_scene() {
     }
     assert!(ok, "{err}");
 }
-
-/// The GPU pressure solve has no Chebyshev semi-iteration
-/// (`chebyshev_radius`, kernels/src/chebyshev.rs): a scene that asks for
-/// it stops at its first step with an error naming the key, rather than
-/// running plain Jacobi on the GPU unannounced.
-#[test]
-fn backend_gpu_refuses_the_chebyshev_semi_iteration() {
-    let dir = std::env::temp_dir().join(format!("porosph_gpu_cli_chebyshev_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let scene = dir.join("chebyshev.toml");
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/hydrostatic.toml")).unwrap();
-    std::fs::write(&scene, text.replace("[simulation]\n", "[simulation]\nchebyshev_radius = 0.95\n")).unwrap();
-    let out = dir.join("out");
-    let (scene, out) = (scene.to_str().unwrap(), out.to_str().unwrap());
-    let (ok, err) = porosph(&["run", scene, "--backend", "gpu", "--steps", "2", "--quiet", "--out", out], &[]);
-    let _ = std::fs::remove_dir_all(&dir);
-    if !ok && err.contains("no GPU adapter found") && !gpu_common::required() {
-        eprintln!("skipped: {err}");
-        return;
-    }
-    assert!(!ok, "must fail");
-    assert!(err.contains("chebyshev_radius") && !err.contains("panicked"), "{err}");
-}

@@ -1,7 +1,9 @@
 //! Chebyshev semi-iteration over the relaxed Jacobi sweeps of the pressure
 //! solve (pass 5, P-Eqs. 27-28; Golub and Varga 1961, the form Wang 2015
 //! uses for position-based dynamics). Opt-in: `chebyshev_radius` of the
-//! scene's `[simulation]`.
+//! scene's `[simulation]`. The CPU loop (src/backend/cpu.rs) calls these
+//! functions; the GPU loop (shaders/iisph.wgsl, `chebyshev_fluid`,
+//! `chebyshev_walls` and the weight in `mean_error`) is their twin.
 //!
 //! Relaxed Jacobi is a fixed-point iteration p <- G p + c. Its slowest
 //! modes are the smooth pressure fields of a deep pool: their factor per
@@ -25,6 +27,11 @@
 //! (`iisph::Divergence`), which restarts as plain Jacobi.
 
 use rayon::prelude::*;
+
+/// Plain sweeps before the semi-iteration starts (it then takes one more
+/// before its first extrapolation): the warm start's first two sweeps
+/// remove its largest local errors. The CPU and GPU loops both use it.
+pub const PLAIN_SWEEPS: u32 = 1;
 
 /// The weights w_k of the semi-iteration for a spectral radius estimate
 /// `rho`: 1 for the first `plain + 1` sweeps, then w_1, w_2, ...

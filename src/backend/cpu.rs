@@ -268,15 +268,10 @@ struct Chebyshev<'a> {
 }
 
 impl<'a> Chebyshev<'a> {
-    /// Plain sweeps before the semi-iteration starts (it then takes one
-    /// more before its first extrapolation): the warm start's first two
-    /// sweeps remove its largest local errors.
-    const PLAIN_SWEEPS: u32 = 1;
-
     fn new(arena: &'a Bump, rho: f32, lens: [usize; 3]) -> Self {
         let b = |k: usize| arena.alloc_slice_fill_copy(lens[k], 0.0f32);
         Self {
-            weights: chebyshev::Weights::new(rho, Self::PLAIN_SWEEPS),
+            weights: chebyshev::Weights::new(rho, chebyshev::PLAIN_SWEEPS),
             prev: [b(0), b(1), b(2)],
             cur: [b(0), b(1), b(2)],
         }

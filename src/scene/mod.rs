@@ -109,8 +109,8 @@ pub struct Simulation {
     /// the sweeps (0.9: Example 1 at d = 5 mm, 15.5 -> 8.4 per step;
     /// bench/RESULTS.md), but the pressure's smooth part varies more from
     /// step to step (tests/hydrostatic.rs: more so from 0.95 on). A smaller
-    /// rho than the true one only accelerates less. CPU backend only: the
-    /// GPU pressure solve refuses it.
+    /// rho than the true one only accelerates less. Both backends (the GPU
+    /// loop matches the CPU's, tests/gpu_iisph.rs).
     #[serde(default)]
     #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 1))]
     pub chebyshev_radius: f32,

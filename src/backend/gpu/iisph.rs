@@ -47,6 +47,12 @@ pub struct IisphParams {
     pub max_density_error: f32,
     /// Fluid rows in the solve (diag != 0), at least 1.
     pub rows_active: f32,
+    /// The Chebyshev semi-iteration's radius estimate, 0 = plain Jacobi.
+    pub chebyshev_radius: f32,
+    /// Plain sweeps before it starts (`chebyshev::PLAIN_SWEEPS`).
+    pub chebyshev_plain: u32,
+    pub pad0: u32,
+    pub pad1: u32,
 }
 
 impl IisphParams {
@@ -62,6 +68,10 @@ impl IisphParams {
             omega: s.omega,
             max_density_error: s.max_density_error,
             rows_active: s.rows_active,
+            chebyshev_radius: s.chebyshev_radius,
+            chebyshev_plain: porosph_kernels::chebyshev::PLAIN_SWEEPS,
+            pad0: 0,
+            pad1: 0,
         }
     }
 }
@@ -99,13 +109,15 @@ pub struct SolveOutput<'a> {
     pub ap: VelMut<'a>,
 }
 
-const ENTRY_POINTS: [&str; 6] = [
+const ENTRY_POINTS: [&str; 8] = [
     "pressure_acceleration",
     "fluid_jacobi",
     "wall_jacobi",
     "mean_error_partial",
     "mean_error",
     "pressure_acceleration_final",
+    "chebyshev_fluid",
+    "chebyshev_walls",
 ];
 const PA: usize = 0;
 const FJ: usize = 1;
@@ -113,10 +125,14 @@ const WJ: usize = 2;
 const MEP: usize = 3;
 const ME: usize = 4;
 const PAF: usize = 5;
+const CF: usize = 6;
+const CW: usize = 7;
 
-/// Storage bindings 1..=17 of the shader: whether each is read-only.
-const READ_ONLY: [bool; 17] =
-    [true, true, false, false, true, false, true, true, true, true, true, false, true, true, true, false, false];
+/// Storage bindings 1..=19 of the shader: whether each is read-only.
+const READ_ONLY: [bool; 19] = [
+    true, true, false, false, true, false, true, true, true, true, true, false, true, true, true, false, false, false,
+    false,
+];
 // The loop's own buffers (index into `bufs`).
 const POS: usize = 0;
 const VM: usize = 1;
@@ -129,8 +145,23 @@ const P_WALL: usize = 7;
 const WALL_ROWS: usize = 8;
 const PARTIALS: usize = 9;
 const STATUS: usize = 10;
-const NAMES: [&str; 11] =
-    ["pos", "vm", "p", "ap", "rows", "err", "wall_vol", "p_wall", "wall_rows", "partials", "status"];
+const CHEB: usize = 11;
+const CHEB_WALL: usize = 12;
+const NAMES: [&str; 13] = [
+    "pos",
+    "vm",
+    "p",
+    "ap",
+    "rows",
+    "err",
+    "wall_vol",
+    "p_wall",
+    "wall_rows",
+    "partials",
+    "status",
+    "cheb",
+    "cheb_wall",
+];
 
 /// Where a storage binding's buffer comes from: the loop's own, or the
 /// cell-range tables (shared with the other passes).
@@ -140,8 +171,8 @@ enum Source {
     Tables(fn(&RangesGpu) -> &wgpu::Buffer),
 }
 
-/// Storage bindings 1..=17 of the shader.
-const BINDINGS: [Source; 17] = [
+/// Storage bindings 1..=19 of the shader.
+const BINDINGS: [Source; 19] = [
     Source::Own(POS),
     Source::Own(VM),
     Source::Own(P),
@@ -159,6 +190,8 @@ const BINDINGS: [Source; 17] = [
     Source::Tables(RangesGpu::bf),
     Source::Own(PARTIALS),
     Source::Own(STATUS),
+    Source::Own(CHEB),
+    Source::Own(CHEB_WALL),
 ];
 
 /// Workgroup size of the gather entry points and span of one partial sum.
@@ -190,6 +223,7 @@ pub struct IisphGpu {
     pos: Vec<[f32; 4]>,
     rows: Vec<[f32; 2]>,
     wall_rows: Vec<[f32; 2]>,
+    cheb: Vec<[f32; 2]>,
 }
 
 /// Most submissions one solve may take (`max_iterations` up to 1000) + the final pass.
@@ -216,6 +250,7 @@ impl IisphGpu {
             pos: Vec::new(),
             rows: Vec::new(),
             wall_rows: Vec::new(),
+            cheb: Vec::new(),
         }
     }
 
@@ -263,8 +298,24 @@ impl IisphGpu {
         // Room on the device; a replaced buffer means a new bind group.
         let (n64, na64, nw64) = (n as u64, na as u64, nw as u64);
         let parts = u64::from((n as u32).div_ceil(RED_SPAN));
-        let sizes: [u64; 11] =
-            [16 * n64, 4 * n64, 4 * n64, 16 * n64, 8 * n64, 4 * n64, 4 * nw64, 4 * nw64, 8 * na64, 4 * parts, 16];
+        // The semi-iteration's iterates only when it runs (8 bytes else).
+        let cheb = s.chebyshev_radius > 0.0;
+        let (nc, nca) = if cheb { (n64, na64) } else { (1, 1) };
+        let sizes: [u64; 13] = [
+            16 * n64,
+            4 * n64,
+            4 * n64,
+            16 * n64,
+            8 * n64,
+            4 * n64,
+            4 * nw64,
+            4 * nw64,
+            8 * na64,
+            4 * parts,
+            16,
+            8 * nc,
+            8 * nca,
+        ];
         let mut replaced = false;
         for (b, &bytes) in self.bufs.iter_mut().zip(&sizes) {
             replaced |= b.reserve(ctx, bytes, true)?;
@@ -302,7 +353,16 @@ impl IisphGpu {
         b[WALL_VOL].upload(ctx, inp.vol_wall);
         b[P_WALL].upload(ctx, out.p_wall);
         b[WALL_ROWS].upload(ctx, &self.wall_rows);
-        b[STATUS].upload(ctx, &[0u32; 4]);
+        // Status: 0 iterations, not done, error 0, Chebyshev weight 1.
+        b[STATUS].upload(ctx, &[0u32, 0, 0, 1.0f32.to_bits()]);
+        if cheb {
+            self.cheb.clear();
+            self.cheb.extend(out.p.iter().map(|&p| [0.0, p]));
+            b[CHEB].upload(ctx, &self.cheb);
+            self.cheb.clear();
+            self.cheb.extend(inp.active.iter().map(|&w| [0.0, out.p_wall[w as usize]]));
+            b[CHEB_WALL].upload(ctx, &self.cheb);
+        }
 
         // The loop: ITERATIONS_PER_SUBMIT iterations per submission, then
         // the status; converged iterations are no-ops on the device.
@@ -321,6 +381,10 @@ impl IisphGpu {
                     self.dispatch(&mut pass, WJ, wall_groups);
                     self.dispatch(&mut pass, MEP, part_groups);
                     self.dispatch(&mut pass, ME, (1, 1));
+                    if cheb {
+                        self.dispatch(&mut pass, CF, fluid_groups);
+                        self.dispatch(&mut pass, CW, wall_groups);
+                    }
                 }
             }
             enc.copy_buffer_to_buffer(&self.bufs[STATUS].buf, 0, &self.read_status.buf, 0, 16);

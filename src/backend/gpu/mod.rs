@@ -354,16 +354,9 @@ impl Passes for GpuBackend {
 
     /// The Jacobi loop on the GPU (`shaders/iisph.wgsl`, data resident).
     /// The GPU system has fluid and wall rows only: with solids the solve
-    /// runs on the CPU. The GPU loop has no Chebyshev semi-iteration: a
-    /// scene that asks for it stops with an error.
+    /// runs on the CPU.
     fn pressure_solve(&mut self, sys: &PressureSystem, mut x: Unknowns, arena: &Bump) -> SolveReport {
-        let rho = sys.settings.chebyshev_radius;
-        if self.passes.pressure_solve && sys.solids.is_none() && rho > 0.0 {
-            self.error = Some(format!(
-                "the GPU pressure solve has no Chebyshev semi-iteration (simulation.chebyshev_radius = {rho}): \
-                 set it to 0, or run the pressure solve on the CPU (--gpu-passes without pressure_solve)"
-            ));
-        } else if self.passes.pressure_solve && sys.solids.is_none() {
+        if self.passes.pressure_solve && sys.solids.is_none() {
             let inp = SolveInput {
                 kernel: sys.kernel,
                 fluid_grid: sys.fluid_grid,

@@ -90,6 +90,10 @@ fn iisph_params_layout_matches_wgsl() {
         omega,
         max_density_error,
         rows_active,
+        chebyshev_radius,
+        chebyshev_plain,
+        pad0,
+        pad1,
     );
     assert_eq!(wgsl_layout(&module, "IisphParams"), rust);
 }
