@@ -50,6 +50,19 @@
 //! a Shepard mean plus the weight term, with v_b = M(v_i)) left that
 //! column moving: 55 mm/s at 5 s, 72 % per particle.
 //!
+//! Tried and not kept: the ghost stress continued along the wall with the
+//! grains' own stress gradient, like the velocity, M_S(S_i + (t_b . grad)
+//! S) (grad S over grains and ghosts, the same sweeps), and the weight term
+//! across the wall only. The column at rest then read 1.007 inside, 0.961
+//! at a side wall, 0.949 in the corners (4.4 % per particle at d = 2 cm),
+//! but settled more slowly (8.6e-4 m/s at 5 s; its mean ratio swung from
+//! 1.30 at 1 s to 0.91 at 3 s and 1.02 at 4 s), 8.7 % at d = 1 cm (mean
+//! 0.914, 1.0e-3 m/s at 5 s: not settled), the a = 2 collapse was still
+//! at 8.1 mm/s at 1.5 s, and in Example 7 a grain left its tank through a
+//! smooth side wall (5.8 mm past its face at 2 s). An extrapolated ghost
+//! stress can be tensile, which pulls grains into the wall; returning it
+//! onto the material's cone first is untried.
+//!
 //! Slip can be chosen per axis: a grain slips when the walls facing the axis closest to its n do (the smooth
 //! side walls of a channel with a rough floor). The mirror velocity, not v_b = 0, is
 //! what makes the wall terms of L and of the force adjoint, so that the
