@@ -60,7 +60,7 @@
 
 use porosph::backend::gpu::GpuBackend;
 use porosph::backend::{BackendKind, GpuPasses};
-use porosph::pipeline::{Simulation, PASSES};
+use porosph::pipeline::{Pass, Simulation};
 use porosph::scene::Scene;
 use std::io::Write;
 use std::time::Instant;
@@ -393,10 +393,10 @@ fn bench(a: &Args) {
         setup_s,
         a.threads
     );
-    let mut pass_ms = [0.0f64; PASSES.len()];
+    let mut pass_ms = [0.0f64; Pass::COUNT];
     // The same over the clean steps only (< 5 % foreign load).
-    let mut clean_ms = [0.0f64; PASSES.len()];
-    let mut gpu_ms = [0.0f64; PASSES.len()];
+    let mut clean_ms = [0.0f64; Pass::COUNT];
+    let mut gpu_ms = [0.0f64; Pass::COUNT];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut cg_iters = 0u64;
     let mut visc_iters = 0u64;
@@ -465,7 +465,7 @@ fn bench(a: &Args) {
             sim.solids.len(),
             sim.solid_model.name(),
             cg_iters as f64 / m,
-            pass_ms[PASSES.iter().position(|q| *q == "elasticity").unwrap_or(0)] / m * 1e6 / sim.solids.len() as f64
+            pass_ms[Pass::Elasticity.index()] / m * 1e6 / sim.solids.len() as f64
         );
     }
     println!(
@@ -503,15 +503,15 @@ fn bench(a: &Args) {
         );
     }
     if a.porous {
-        let ms = |p: &str| PASSES.iter().position(|q| *q == p).map_or(0.0, |k| pass_ms[k] / m);
+        let ms = |p: Pass| pass_ms[p.index()] / m;
         println!(
             "porous pass          {:.2} ms = {:.1} ns per fluid particle-step; elasticity {:.2} ms, \
              drift {:.2} ms, phase_transport {:.2} ms",
-            ms("porous"),
-            ms("porous") * 1e6 / n as f64,
-            ms("elasticity"),
-            ms("drift"),
-            ms("phase_transport")
+            ms(Pass::Porous),
+            ms(Pass::Porous) * 1e6 / n as f64,
+            ms(Pass::Elasticity),
+            ms(Pass::Drift),
+            ms(Pass::PhaseTransport)
         );
         if let Some(s0) = &soak_start {
             print_soak("soak at first timed step", s0);
@@ -534,7 +534,7 @@ fn bench(a: &Args) {
         "ms per pass (mean; wall, and device time of passes on the GPU{}):",
         if nc > 0 { format!("; then the mean over the {nc} clean steps") } else { String::new() }
     );
-    for (((p, v), g), c) in PASSES.iter().zip(pass_ms).zip(gpu_ms).zip(clean_ms) {
+    for (((p, v), g), c) in Pass::ALL.iter().zip(pass_ms).zip(gpu_ms).zip(clean_ms) {
         let clean = if nc > 0 { format!("  (clean {:.2})", c / nc as f64) } else { String::new() };
         if g > 0.0 {
             println!("  {:<16} {:8.2}  (GPU device {:.2}){clean}", p, v / m, g / m);
@@ -542,19 +542,17 @@ fn bench(a: &Args) {
             println!("  {:<16} {:8.2}{clean}", p, v / m);
         }
     }
-    if let Some(k) = PASSES.iter().position(|q| *q == "pressure_solve") {
-        println!("pressure_solve ms per Jacobi iteration {:.3}", pass_ms[k] / iters.max(1) as f64);
-    }
+    let k = Pass::PressureSolve.index();
+    println!("pressure_solve ms per Jacobi iteration {:.3}", pass_ms[k] / iters.max(1) as f64);
     if phases > 1 {
         println!("mixture passes, ns per particle-step:");
-        for p in ["drift", "drift_momentum", "phase_transport", "phase_correction"] {
-            if let Some(k) = PASSES.iter().position(|q| *q == p) {
-                println!("  {:<16} {:8.1}", p, pass_ms[k] / m * 1e6 / n as f64);
-            }
+        for p in [Pass::Drift, Pass::DriftMomentum, Pass::PhaseTransport, Pass::PhaseCorrection] {
+            println!("  {:<16} {:8.1}", p.name(), pass_ms[p.index()] / m * 1e6 / n as f64);
         }
     }
     if let Some(path) = &a.json {
-        let passes: Vec<String> = PASSES.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
+        let passes: Vec<String> =
+            Pass::ALL.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
         let line = format!(
             "{{\"fluid_particles\": {n}, \"phases\": {}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \

@@ -18,6 +18,103 @@ use porosph_kernels::neighbors::{PairLists, Points};
 use porosph_kernels::phases::PhaseConstants;
 use porosph_kernels::solid_rows::SolidNeighbours;
 
+/// The timed passes of a step, in order, each with its number in
+/// PHYSICS.md §6's pipeline. [`Pass::name`] heads the pass's `ms_<pass>`
+/// column of `stats.csv` on every backend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Pass {
+    /// 0: neighbour search, with the Morton sort and reorder.
+    Neighbors,
+    /// 1: phase bookkeeping.
+    Phases,
+    /// 2 and 4a-b: densities, rest and current volumes.
+    Densities,
+    /// 3: viscosity and the predicted velocity u*.
+    Viscosity,
+    /// 4c: sources and diagonal of the pressure system.
+    PpeSetup,
+    /// 5: the IISPH relaxed Jacobi loop.
+    PressureSolve,
+    /// 6 and 8: the elastic solids (deformation, stress, conjugate
+    /// gradients; 0 ms without solids).
+    Elasticity,
+    /// 6-7 and 9: the porous coupling (absorbed volume, pore pressure,
+    /// Darcy flux, the fluid's porous terms and accelerations; 0 ms without
+    /// porous solids).
+    Porous,
+    /// 10: drift velocities (two or more phases, else 0 ms).
+    Drift,
+    /// 11: the drift momentum term a^Dm (two or more phases).
+    DriftMomentum,
+    /// 12: volume-fraction transport (two or more phases).
+    PhaseTransport,
+    /// 13: integration.
+    Integrate,
+    /// 14: the volume-fraction correction (two or more phases).
+    PhaseCorrection,
+    /// 14: the next time step (CFL).
+    TimeStep,
+}
+
+impl Pass {
+    /// Every pass, in the order of the step.
+    pub const ALL: [Pass; 14] = [
+        Pass::Neighbors,
+        Pass::Phases,
+        Pass::Densities,
+        Pass::Viscosity,
+        Pass::PpeSetup,
+        Pass::PressureSolve,
+        Pass::Elasticity,
+        Pass::Porous,
+        Pass::Drift,
+        Pass::DriftMomentum,
+        Pass::PhaseTransport,
+        Pass::Integrate,
+        Pass::PhaseCorrection,
+        Pass::TimeStep,
+    ];
+
+    /// Number of passes.
+    pub const COUNT: usize = Pass::ALL.len();
+
+    /// The pass's place in [`Pass::ALL`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The name of the pass in `stats.csv` and the benchmarks.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Pass::Neighbors => "neighbors",
+            Pass::Phases => "phases",
+            Pass::Densities => "densities",
+            Pass::Viscosity => "viscosity",
+            Pass::PpeSetup => "ppe_setup",
+            Pass::PressureSolve => "pressure_solve",
+            Pass::Elasticity => "elasticity",
+            Pass::Porous => "porous",
+            Pass::Drift => "drift",
+            Pass::DriftMomentum => "drift_momentum",
+            Pass::PhaseTransport => "phase_transport",
+            Pass::Integrate => "integrate",
+            Pass::PhaseCorrection => "phase_correction",
+            Pass::TimeStep => "time_step",
+        }
+    }
+
+    /// The pass of a name ([`Pass::name`]).
+    pub fn from_name(name: &str) -> Option<Pass> {
+        Pass::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+impl std::fmt::Display for Pass {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
+    }
+}
+
 /// The passes a backend runs for the step.
 pub trait Passes: Send {
     /// Which backend this is.

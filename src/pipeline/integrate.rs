@@ -2,7 +2,7 @@
 //! then the correction of the volume fractions.
 
 use super::mixture::NextFractions;
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use crate::store::{FluidStore, SolidStore};
 use bumpalo::Bump;
 use porosph_kernels::iisph::Vel;
@@ -19,7 +19,7 @@ pub(super) fn positions(
     dt: f32,
     tm: &mut PassTimes,
 ) {
-    tm.time(pass::INTEGRATE, || {
+    tm.time(Pass::Integrate, || {
         let s = State {
             x: &mut fluid.x,
             y: &mut fluid.y,
@@ -52,7 +52,7 @@ pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, are
     }
     let np = fluid.alpha.len();
     let porous = !next.beta.is_empty();
-    tm.time(pass::PHASE_CORRECTION, || {
+    tm.time(Pass::PhaseCorrection, || {
         let sets = if porous { 2 * np } else { np };
         let all = arena.alloc_slice_fill_iter((0..sets).map(|k| {
             if k < np {

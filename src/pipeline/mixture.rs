@@ -9,7 +9,7 @@
 use super::phases::PhaseState;
 use super::porous::PoreTerms;
 use super::prediction::Prediction;
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::{Params, Workspace};
 use crate::backend::cpu::phase_vel;
 use crate::backend::passes::{DriftInput, DriftOutput, DriftProblem, PorousDriftInput};
@@ -87,7 +87,7 @@ pub(super) fn drift_and_transport<'a>(
         tau: p.phase_drift_tau[k],
         sigma: p.phase_drift_sigma[k],
     }));
-    let report = tm.time(pass::DRIFT, || {
+    let report = tm.time(Pass::Drift, || {
         let pf = zeros(if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
@@ -130,7 +130,7 @@ pub(super) fn drift_and_transport<'a>(
         });
         w.backend.drift(&prob, out, inner, arena)
     });
-    tm.gpu_ms[pass::DRIFT] = report.gpu_ms;
+    tm.set_gpu(Pass::Drift, report.gpu_ms);
     let u_drift = phase_vel(arena, ux, uy, uz, n);
     // The drift speed of the time step rule: the advective part (P-Eq. 11
     // without its diffusion term; with phase pressures p_k = alphahat_k p
@@ -138,7 +138,7 @@ pub(super) fn drift_and_transport<'a>(
     let cfl_speed = if p.fraction_pressure {
         report.max_speed
     } else {
-        tm.time(pass::DRIFT, || {
+        tm.time(Pass::Drift, || {
             let a_p = Vel { x: &*apx, y: &*apy, z: &*apz };
             let outer = drift::AdvectiveDrift {
                 frac: alpha,
@@ -162,7 +162,7 @@ pub(super) fn drift_and_transport<'a>(
 
     // Pass 11: a^Dm, added to a^p.
     if p.drift_momentum_sign != 0.0 {
-        tm.time(pass::DRIFT_MOMENTUM, || {
+        tm.time(Pass::DriftMomentum, || {
             let (dx, dy, dz) = (zeros(n), zeros(n), zeros(n));
             let inp = DriftMomentumInput {
                 ff: &w.ff,
@@ -180,7 +180,7 @@ pub(super) fn drift_and_transport<'a>(
     }
 
     // Pass 12: transport of every phase at the old positions (P-Eq. 2).
-    tm.time(pass::PHASE_TRANSPORT, || {
+    tm.time(Pass::PhaseTransport, || {
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let tr = Transport { p, arena, n, dt, u };
         tr.run(&w.ff, alpha, &fluid.alpha_lo, phase_vel(arena, fx, fy, fz, n), alpha_next);

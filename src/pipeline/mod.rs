@@ -22,7 +22,7 @@ pub use granular::{Granular, Mixed};
 pub use restore::SavedState;
 pub use solid::{Current, Peer2018, SolidModel, SolidStats};
 pub use step::{DtLimit, StepError};
-pub use timing::{PassTimes, PASSES};
+pub use timing::{Pass, PassTimes};
 
 use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};

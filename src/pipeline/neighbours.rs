@@ -5,7 +5,7 @@
 //! PHYSICS.md §2.4), and with solids the solids' Morton order and the pairs
 //! FS, SF, SS, solid-wall and active-wall-solid. Everything it builds lives in the [`Workspace`].
 
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::{Params, Workspace};
 use crate::backend::passes::{StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
@@ -26,7 +26,7 @@ pub(super) fn search(
 ) {
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
-    tm.time(pass::NEIGHBORS, || {
+    tm.time(Pass::Neighbors, || {
         let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         gpu_ms += w.backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
@@ -56,7 +56,7 @@ pub(super) fn search(
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
         gpu_ms += w.backend.prepare(&w.fluid_grid, walls, shape);
     });
-    tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
+    tm.set_gpu(Pass::Neighbors, gpu_ms);
 }
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs

@@ -2,7 +2,7 @@
 //! rest density, viscosity, outer fraction, mass and pressure-solve rest
 //! volume from its fractions (P-Eq. 10, P §6.1).
 
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::Params;
 use crate::store::FluidStore;
 use bumpalo::Bump;
@@ -40,7 +40,7 @@ pub(super) fn bookkeeping<'a>(
     let alpha_f = arena.alloc_slice_fill_copy(n, 0.0f32);
     let mass = arena.alloc_slice_fill_copy(n, 0.0f32);
     let v0 = arena.alloc_slice_fill_copy(n, 0.0f32);
-    tm.time(pass::PHASES, || {
+    tm.time(Pass::Phases, || {
         let cell = p.cell_volume();
         rest_density
             .par_chunks_mut(BLOCK)

@@ -18,7 +18,7 @@
 //! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
 //! the strain it sees lags by one step (0 at the start: strain-free).
 
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -59,7 +59,7 @@ pub(super) fn partition<'a>(
     arena: &'a Bump,
     tm: &mut PassTimes,
 ) -> Partition<'a> {
-    tm.time(pass::POROUS, || {
+    tm.time(Pass::Porous, || {
         let mask = arena.alloc_slice_fill_iter(
             w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
         );
@@ -110,7 +110,7 @@ pub(super) fn partition<'a>(
 /// next step sees the inner volume the step ends with.
 pub(super) fn settle(fluid: &mut FluidStore, part: &Partition, tm: &mut PassTimes) {
     let n = fluid.len();
-    tm.time(pass::POROUS, || {
+    tm.time(Pass::Porous, || {
         for (k, (alpha, beta)) in outer_inner(fluid).enumerate() {
             take_inside(&part.fill[k * n..(k + 1) * n], alpha, beta);
         }
@@ -140,7 +140,7 @@ pub(super) fn solid_terms<'a>(
     arena: &'a Bump,
     tm: &mut PassTimes,
 ) -> PoreTerms<'a> {
-    tm.time(pass::POROUS, || {
+    tm.time(Pass::Porous, || {
         if mixture {
             let active = near_inner_fluid(fluid, &w.ff, arena);
             w.ffb.copy_scaled_where(&w.ff, p.cell_volume(), active);
@@ -180,7 +180,7 @@ pub(super) fn exchange(
     dt: f32,
     tm: &mut PassTimes,
 ) {
-    tm.time(pass::PHASE_TRANSPORT, || {
+    tm.time(Pass::PhaseTransport, || {
         for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
             porosph_kernels::porous::exchange(&terms.gamma[k * n..(k + 1) * n], dt, a, b);
         }

@@ -5,7 +5,7 @@
 //! step's start) or implicit (of u*, a linear solve: `Params::implicit_viscosity`).
 
 use super::phases::PhaseState;
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::Params;
 use crate::store::FluidStore;
 use bumpalo::Bump;
@@ -46,7 +46,7 @@ pub(super) fn predict<'a>(
     let (usx, usy, usz) = (zeros(n), zeros(n), zeros(n));
     let (avx, avy, avz) = (zeros(nm), zeros(nm), zeros(nm));
     let mut iterations = 0;
-    tm.time(pass::VISCOSITY, || {
+    tm.time(Pass::Viscosity, || {
         let inp = ViscosityInput {
             ff,
             x: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },

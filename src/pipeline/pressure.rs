@@ -11,7 +11,7 @@
 use super::phases::PhaseState;
 use super::prediction::Prediction;
 use super::solid::{BodyResponse, SolidModel, SolidStats};
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::volumes::Volumes;
 use super::{Params, StepStats, Workspace};
 use crate::backend::passes::{PressureSystem, SolidSystem, SolidUnknowns, SolveSettings, Unknowns, WallInput};
@@ -72,7 +72,7 @@ pub(super) fn setup<'a>(
     let u_solid = Vel { x: usx, y: usy, z: usz };
     let (src_s, diag_s) = (zeros(ns), zeros(ns));
     let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
-    tm.time(pass::PPE_SETUP, || {
+    tm.time(Pass::PpeSetup, || {
         let rows = FluidRows {
             u_star: pred.u_star,
             vol: vols.vol,
@@ -239,12 +239,12 @@ pub(super) fn solve<'a>(
             response: &mut response,
         }),
     };
-    let report = st.times.time(pass::PRESSURE_SOLVE, || w.backend.pressure_solve(&sys, x, arena));
+    let report = st.times.time(Pass::PressureSolve, || w.backend.pressure_solve(&sys, x, arena));
     st.iterations = report.iterations;
     st.density_error = report.density_error;
     st.solid_density_error = report.solid_error;
     st.solve_restarts = report.restarts;
-    st.times.gpu_ms[pass::PRESSURE_SOLVE] = report.gpu_ms.unwrap_or(0.0);
+    st.times.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
     st.cg_iterations += response.stats.iterations;
     st.cg_residual = st.cg_residual.max(response.stats.residual);
     Solved { ap: [apx, apy, apz], p_solid, accel_solid }

@@ -7,7 +7,7 @@
 //! corotated SPH elasticity of Peer et al. 2018; the granular continuum of
 //! the paper's Example 7 runs next to it (`granular.rs`, [`super::granular::Mixed`]).
 
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::Params;
 use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
@@ -338,7 +338,7 @@ impl Compliance for BodyResponse<'_> {
 
 /// Alg. 2's first line: the solids' strain at the current positions.
 pub(super) fn strain(solids: &mut SolidStore, model: &mut dyn SolidModel, tm: &mut PassTimes) {
-    tm.time(pass::ELASTICITY, || model.deform(solids));
+    tm.time(Pass::Elasticity, || model.deform(solids));
 }
 
 /// Alg. 2's last line: stress, elastic forces and the predicted velocities
@@ -352,7 +352,7 @@ pub(super) fn predict(
     dt: f32,
     tm: &mut PassTimes,
 ) -> SolidStats {
-    tm.time(pass::ELASTICITY, || model.predict(solids, Vec3::from(p.gravity), pore, dt, near))
+    tm.time(Pass::Elasticity, || model.predict(solids, Vec3::from(p.gravity), pore, dt, near))
 }
 
 /// Alg. 4's first line: v^{n+1} = v^pred + dt a^p_s for the free particles
@@ -367,7 +367,7 @@ pub(super) fn finish(
     dt: f32,
     tm: &mut PassTimes,
 ) {
-    tm.time(pass::ELASTICITY, || {
+    tm.time(Pass::Elasticity, || {
         for (k, &i) in perm.iter().enumerate() {
             solids.pressure[i as usize] = p_solid[k];
         }

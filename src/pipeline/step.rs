@@ -5,7 +5,7 @@
 //! solids the porous ones.
 
 use super::solid::SolidModel;
-use super::timing::pass;
+use super::timing::Pass;
 use super::{integrate, mixture, neighbours, phases, porous, prediction, pressure, solid, volumes};
 use super::{Params, Simulation, StepStats, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
@@ -66,7 +66,7 @@ impl Simulation {
         }
         let (dt_next, by) = self.dt_rule(speed, stats.cfl_drift_speed.max(stats.max_darcy_speed));
         (self.dt, stats.next_dt_limit) = (dt_next, Some(by));
-        stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
+        stats.times.add(Pass::TimeStep, t.elapsed().as_secs_f64() * 1e3);
         stats.max_speed = speed;
         stats.dt = dt;
         self.last = stats;
@@ -290,12 +290,12 @@ fn step_passes(
             x: [sx, sy, sz],
             walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
         };
-        tm.time(pass::ELASTICITY, || model.wall_contact(solids, &near));
+        tm.time(Pass::Elasticity, || model.wall_contact(solids, &near));
     }
     // Alg. 3: a^cap and a^pore (P-Eqs. 10, 14), added to a^p.
     if let Some(t) = &terms {
         let ap = [&mut *apx, &mut *apy, &mut *apz];
-        tm.time(pass::POROUS, || porous::accelerations(p, fluid, t, ph.rest_density, pred.u_star, dt, ap));
+        tm.time(Pass::Porous, || porous::accelerations(p, fluid, t, ph.rest_density, pred.u_star, dt, ap));
     }
     // Alg. 3: drift velocities, drift momentum and transport (P-Eqs. 2,
     // 6-7, 11-12), then the absorption exchange (P-Eq. 22).
@@ -307,7 +307,7 @@ fn step_passes(
     if let Some(t) = &terms {
         porous::exchange(t, fluid.len(), &mut *next.alpha, &mut *next.beta, dt, tm);
         let ap = [&mut *apx, &mut *apy, &mut *apz];
-        tm.time(pass::POROUS, || porous::wall_guard(p, fluid, walls, &w.fb, pred.u_star, dt, ap));
+        tm.time(Pass::Porous, || porous::wall_guard(p, fluid, walls, &w.fb, pred.u_star, dt, ap));
     }
     // Alg. 4: integration of P-Eqs. 6-8, then sum_k (alpha_k + beta_k) = 1.
     integrate::positions(fluid, solids, pred.u_star, Vel { x: apx, y: apy, z: apz }, dt, tm);

@@ -4,7 +4,7 @@
 //! (the fluid's: its outer mixture's rest density times V0 / V).
 
 use super::phases::PhaseState;
-use super::timing::{pass, PassTimes};
+use super::timing::{Pass, PassTimes};
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -65,7 +65,7 @@ pub(super) fn volumes<'a>(
         arena.alloc_slice_fill_iter(no_walls_s.iter().zip(v0_s.iter()).map(|(&f, &v)| if f != 0 { 0.0 } else { v }));
     let own = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_own[i as usize]));
     let (sigma_s, vol_s) = (zeros(ns), zeros(ns));
-    tm.time(pass::DENSITIES, || {
+    tm.time(Pass::Densities, || {
         let fs = (ns > 0).then_some(SolidPairs { pairs: &w.fs, values: &*v0_s });
         iisph::fluid_volumes(&w.ff, &w.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
         iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
