@@ -12,10 +12,11 @@ use super::gpu::GpuBackend;
 use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{Rows, Vel, VelMut};
+use porosph_kernels::iisph::Rows;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::phases::PhaseConstants;
+use porosph_kernels::soa::{Vel, VelMut};
 use porosph_kernels::solid_rows::SolidNeighbours;
 
 /// The timed passes of a step, in order, each with its number in
@@ -126,7 +127,7 @@ pub trait Passes: Send {
     /// scratch). Returns the device time, ms (0 on the CPU).
     fn sort(
         &mut self,
-        fluid: Points,
+        fluid: Vel,
         inv_cell: f32,
         keys: &mut Vec<u64>,
         sort: &mut Vec<(u64, u32)>,
@@ -181,7 +182,7 @@ pub struct StepShape {
 #[derive(Clone, Copy)]
 pub struct WallInput<'a> {
     pub grid: &'a CellGrid,
-    pub walls: Points<'a>,
+    pub walls: Vel<'a>,
     pub active: &'a [u32],
 }
 
@@ -205,7 +206,7 @@ pub struct PressureSystem<'a> {
     /// The scene's kernel (the GPU passes recompute g_ij with it).
     pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
+    pub fluid: Vel<'a>,
     pub walls: WallInput<'a>,
     /// Fluid-fluid, fluid-wall and active-wall-fluid pairs.
     pub ff: &'a PairLists,
@@ -309,7 +310,7 @@ pub struct DriftInput<'a> {
     /// The scene's kernel (the GPU passes recompute g_ij with it).
     pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
+    pub fluid: Vel<'a>,
     /// Current volume V of each particle (the volume of the harmonic pair
     /// volumes the CPU pair lists are scaled by), m^3.
     pub vol: &'a [f32],
@@ -334,7 +335,7 @@ pub struct DriftInput<'a> {
 /// pressure, -tau' q_k,f, and every volume h^3.
 pub struct PorousDriftInput<'a> {
     /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
-    pub grad_pore: [&'a [f32]; 3],
+    pub grad_pore: Vel<'a>,
     /// phi of P-Eq. 11, m^2/(Pa s).
     pub pore_drift: f32,
     /// beta_k per phase.
@@ -342,7 +343,7 @@ pub struct PorousDriftInput<'a> {
     /// beta_f = sum_k beta_k.
     pub beta_f: &'a [f32],
     /// q_k,f, phase-major, m/s.
-    pub q: [&'a [f32]; 3],
+    pub q: Vel<'a>,
     /// tau' of P-Eq. 12.
     pub inner_tau: f32,
     /// sigma' of P-Eq. 12, m^2/s.
@@ -354,25 +355,16 @@ pub struct PorousDriftInput<'a> {
 /// What the drift pass writes, phase-major (phase k at `[k n, (k + 1) n)`):
 /// the drift velocities u_mk and the phase fluxes F_k, m/s.
 pub struct DriftOutput<'a> {
-    pub ux: &'a mut [f32],
-    pub uy: &'a mut [f32],
-    pub uz: &'a mut [f32],
-    pub fx: &'a mut [f32],
-    pub fy: &'a mut [f32],
-    pub fz: &'a mut [f32],
+    /// u_mk.
+    pub u: VelMut<'a>,
+    /// F_k.
+    pub f: VelMut<'a>,
 }
 
 impl DriftOutput<'_> {
     /// The same arrays, borrowed again.
     pub fn reborrow(&mut self) -> DriftOutput<'_> {
-        DriftOutput {
-            ux: &mut *self.ux,
-            uy: &mut *self.uy,
-            uz: &mut *self.uz,
-            fx: &mut *self.fx,
-            fy: &mut *self.fy,
-            fz: &mut *self.fz,
-        }
+        DriftOutput { u: self.u.reborrow(), f: self.f.reborrow() }
     }
 }
 

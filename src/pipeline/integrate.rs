@@ -5,9 +5,9 @@ use super::mixture::NextFractions;
 use super::timing::{Pass, PassTimes};
 use crate::store::{FluidStore, SolidStore};
 use bumpalo::Bump;
-use porosph_kernels::iisph::Vel;
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::phase_transport;
+use porosph_kernels::soa::Vel;
 
 /// Pass 13: u^{n+1} = u* + dt a (a = a^p and what the later passes added),
 /// x += dt u^{n+1}; solids: x += dt v^{n+1} (PHYSICS.md §3.3).

@@ -11,16 +11,15 @@ use super::porous::PoreTerms;
 use super::prediction::Prediction;
 use super::timing::{Pass, PassTimes};
 use super::{Params, Workspace};
-use crate::backend::cpu::phase_vel;
 use crate::backend::passes::{DriftInput, DriftOutput, DriftProblem, PorousDriftInput};
 use crate::store::FluidStore;
 use bumpalo::Bump;
 use porosph_kernels::drift;
 use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
-use porosph_kernels::iisph::{Vel, VelMut};
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::phase_transport::{self, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
+use porosph_kernels::soa::{zeros, zeros3, Vel};
 use rayon::prelude::*;
 
 /// The fractions after the transport, phase k at `[k n, (k + 1) n)`, in
@@ -56,7 +55,6 @@ pub(super) fn drift_and_transport<'a>(
     let np = fluid.alpha.len();
     let mixture = p.mixture() && n > 0;
     let porous = terms.is_some();
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
     let nt = if mixture || porous { n } else { 0 };
     let alpha_next = arena.alloc_slice_fill_copy(np * nt, 0.0f64);
     let beta_next = arena.alloc_slice_fill_copy(if porous { np * n } else { 0 }, 0.0f64);
@@ -73,9 +71,9 @@ pub(super) fn drift_and_transport<'a>(
     let [apx, apy, apz] = ap;
     let alpha: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
     // Pass 10: u_mk and the phase fluxes F_k, outer and (porous) inner.
-    let [ux, uy, uz, fx, fy, fz] = [(); 6].map(|_| zeros(np * n));
+    let (mut u, mut f) = (zeros3(arena, np * n), zeros3(arena, np * n));
     let ni = if porous { np * n } else { 0 };
-    let [bx, by, bz, gx, gy, gz] = [(); 6].map(|_| zeros(ni));
+    let (mut bu, mut bf) = (zeros3(arena, ni), zeros3(arena, ni));
     let (beta, beta_f): (&[&[f32]], &[f32]) = if porous {
         let beta = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
         (beta, arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
@@ -88,7 +86,7 @@ pub(super) fn drift_and_transport<'a>(
         sigma: p.phase_drift_sigma[k],
     }));
     let report = tm.time(Pass::Drift, || {
-        let pf = zeros(if p.fraction_pressure { n } else { 0 });
+        let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
         }
@@ -96,7 +94,7 @@ pub(super) fn drift_and_transport<'a>(
             input: DriftInput {
                 kernel: &p.kernel,
                 fluid_grid: &w.fluid_grid,
-                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                fluid: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
                 vol,
                 alpha,
                 alpha_f: ph.alpha_f,
@@ -119,19 +117,12 @@ pub(super) fn drift_and_transport<'a>(
             ff: &w.ff,
             ffb: porous.then_some(&w.ffb),
         };
-        let out = DriftOutput { ux: &mut *ux, uy: &mut *uy, uz: &mut *uz, fx: &mut *fx, fy: &mut *fy, fz: &mut *fz };
-        let inner = porous.then_some(DriftOutput {
-            ux: &mut *bx,
-            uy: &mut *by,
-            uz: &mut *bz,
-            fx: &mut *gx,
-            fy: &mut *gy,
-            fz: &mut *gz,
-        });
+        let out = DriftOutput { u: u.reborrow(), f: f.reborrow() };
+        let inner = porous.then_some(DriftOutput { u: bu.reborrow(), f: bf.reborrow() });
         w.backend.drift(&prob, out, inner, arena)
     });
     tm.set_gpu(Pass::Drift, report.gpu_ms);
-    let u_drift = phase_vel(arena, ux, uy, uz, n);
+    let u_drift = PhaseVel::split(arena, u.into_view(), n);
     // The drift speed of the time step rule: the advective part (P-Eq. 11
     // without its diffusion term; with phase pressures p_k = alphahat_k p
     // all of u_mk, whose grad p_k part is a diffusion-like term too).
@@ -163,7 +154,7 @@ pub(super) fn drift_and_transport<'a>(
     // Pass 11: a^Dm, added to a^p.
     if p.drift_momentum_sign != 0.0 {
         tm.time(Pass::DriftMomentum, || {
-            let (dx, dy, dz) = (zeros(n), zeros(n), zeros(n));
+            let mut d = zeros3(arena, n);
             let inp = DriftMomentumInput {
                 ff: &w.ff,
                 alpha,
@@ -172,8 +163,8 @@ pub(super) fn drift_and_transport<'a>(
                 rest_density: ph.rest_density,
                 sign: p.drift_momentum_sign,
             };
-            drift_momentum(&inp, VelMut { x: &mut *dx, y: &mut *dy, z: &mut *dz });
-            for (a, d) in [(&mut *apx, &*dx), (&mut *apy, &*dy), (&mut *apz, &*dz)] {
+            drift_momentum(&inp, d.reborrow());
+            for (a, d) in [(&mut *apx, &*d.x), (&mut *apy, &*d.y), (&mut *apz, &*d.z)] {
                 a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
             }
         });
@@ -183,9 +174,9 @@ pub(super) fn drift_and_transport<'a>(
     tm.time(Pass::PhaseTransport, || {
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let tr = Transport { p, arena, n, dt, u };
-        tr.run(&w.ff, alpha, &fluid.alpha_lo, phase_vel(arena, fx, fy, fz, n), alpha_next);
+        tr.run(&w.ff, alpha, &fluid.alpha_lo, PhaseVel::split(arena, f.into_view(), n), alpha_next);
         if porous {
-            tr.run(&w.ffb, beta, &fluid.beta_lo, phase_vel(arena, gx, gy, gz, n), beta_next);
+            tr.run(&w.ffb, beta, &fluid.beta_lo, PhaseVel::split(arena, bf.into_view(), n), beta_next);
         }
     });
     (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed, cfl_speed)
@@ -206,11 +197,10 @@ impl Transport<'_> {
     fn run(&self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
         let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
         if self.p.conservative_transport {
-            let zeros = |len: usize| arena.alloc_slice_fill_copy(len, 0.0f32);
             let scratch = TransportScratch {
-                limit: zeros(np * n),
-                net: zeros(np * n),
-                least: zeros(n),
+                limit: zeros(arena, np * n),
+                net: zeros(arena, np * n),
+                least: zeros(arena, n),
                 next: arena.alloc_slice_fill_copy(np * n, 0.0f64),
             };
             let lo = arena.alloc_slice_fill_iter(lo.iter().map(|l| l.as_slice()));

@@ -10,7 +10,8 @@ use super::{Params, Workspace};
 use crate::backend::passes::{StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
+use porosph_kernels::soa::Vel;
 
 /// Pass 0 for the fluid, walls and solids. The fluid store is reordered
 /// along the Morton curve; solids keep their store order (the pair lists
@@ -27,7 +28,7 @@ pub(super) fn search(
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
     tm.time(Pass::Neighbors, || {
-        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         gpu_ms += w.backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(&w.perm, &mut w.reorder);
@@ -35,8 +36,8 @@ pub(super) fn search(
         w.keys.clear();
         w.keys.extend(w.sort.iter().map(|&(k, _)| k));
         w.fluid_grid.build(&w.keys, support);
-        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+        let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
         build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
         if !solids.is_empty() {
@@ -46,11 +47,11 @@ pub(super) fn search(
         let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
         let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
         let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
-        let ap = Points { x: ax, y: ay, z: az };
+        let ap = Vel { x: ax, y: ay, z: az };
         build_pairs(&mut w.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
         if !solids.is_empty() {
             let [sx, sy, sz] = &w.solid_sorted;
-            build_pairs(&mut w.bs, ap, Points { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
+            build_pairs(&mut w.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
@@ -99,11 +100,11 @@ fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &Wall
         w.solid_rows.extend(0..ns as u32);
     }
     let [sx, sy, sz] = &w.solid_sorted;
-    let sp = Points { x: sx, y: sy, z: sz };
-    let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+    let sp = Vel { x: sx, y: sy, z: sz };
+    let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
     build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
     build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
     build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
-    let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+    let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
     build_pairs(&mut w.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
 }

@@ -23,17 +23,14 @@ use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
-use porosph_kernels::iisph::{self, Vel, VelMut};
+use porosph_kernels::iisph::{self};
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::porous::{
     absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
     FluidPhaseOut, Fractions, SolidPhase,
 };
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use rayon::prelude::*;
-
-fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
-    arena.alloc_slice_fill_copy(n, 0.0f32)
-}
 
 /// N_f per fluid particle and the porous mask of the solids (1 for a
 /// particle of a porous solid), in the sorted order of the solid pair lists.
@@ -195,9 +192,9 @@ pub(super) struct PoreTerms<'a> {
     /// u_betak,f (P-Eq. 16), m/s.
     pub u_beta: [&'a [f32]; 3],
     /// q_k,f (P-Eq. 17), m/s.
-    pub q: [&'a [f32]; 3],
+    pub q: Vel<'a>,
     /// grad p^pore_fk (P-Eq. 20), Pa/m.
-    pub grad_pore: [&'a [f32]; 3],
+    pub grad_pore: Vel<'a>,
     /// Gamma_k (P-Eq. 22), 1/s.
     pub gamma: &'a [f32],
     /// eta p^pore per solid particle (store order), Pa, for the stress
@@ -266,12 +263,12 @@ fn pore_state<'a>(
 
     // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
     // u_rk = q_k / e, u_betak = u_rk + v_s.
-    let (gx, gy, gz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    let VelMut { x: gx, y: gy, z: gz } = zeros3(arena, ns);
     pore_gradient(&w.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
-        let (qx, qy, qz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
-        let (ux, uy, uz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+        let VelMut { x: qx, y: qy, z: qz } = zeros3(arena, ns);
+        let VelMut { x: ux, y: uy, z: uz } = zeros3(arena, ns);
         let p0k = zeros(arena, ns);
         let cond = zeros(arena, ns);
         for s in 0..ns {
@@ -295,7 +292,7 @@ fn pore_state<'a>(
     let per_solid = arena.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
 
     // Pass 9 on the fluid.
-    let (cx, cy, cz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+    let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, n);
     let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
     capillary_normal(&w.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
@@ -335,8 +332,8 @@ fn pore_state<'a>(
     PoreTerms {
         capillary: [cx, cy, cz],
         u_beta: [ubx, uby, ubz],
-        q: [qfx, qfy, qfz],
-        grad_pore: [gpx, gpy, gpz],
+        q: Vel { x: qfx, y: qfy, z: qfz },
+        grad_pore: Vel { x: gpx, y: gpy, z: gpz },
         gamma,
         pore_stress,
         max_darcy_speed: max_darcy,

@@ -10,8 +10,8 @@ use super::Params;
 use crate::store::FluidStore;
 use bumpalo::Bump;
 use porosph_kernels::blocks::nblocks;
-use porosph_kernels::iisph::{Vel, VelMut};
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::viscosity::{
     predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
 };
@@ -42,14 +42,13 @@ pub(super) fn predict<'a>(
     let n = fluid.len();
     let mixture = p.mixture() && n > 0;
     let nm = if mixture { n } else { 0 };
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (usx, usy, usz) = (zeros(n), zeros(n), zeros(n));
-    let (avx, avy, avz) = (zeros(nm), zeros(nm), zeros(nm));
+    let VelMut { x: usx, y: usy, z: usz } = zeros3(arena, n);
+    let VelMut { x: avx, y: avy, z: avz } = zeros3(arena, nm);
     let mut iterations = 0;
     tm.time(Pass::Viscosity, || {
         let inp = ViscosityInput {
             ff,
-            x: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+            x: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
             u: Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz },
             rest_density: ph.rest_density,
             mu: ph.mu,
@@ -59,9 +58,9 @@ pub(super) fn predict<'a>(
         };
         if p.implicit_viscosity && n > 0 {
             let alpha = mixture.then(|| &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice())));
-            let z3 = || [zeros(n), zeros(n), zeros(n)];
+            let z3 = || [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
             let scratch = ImplicitScratch {
-                diag: zeros(n),
+                diag: zeros(arena, n),
                 r: z3(),
                 z: z3(),
                 p: z3(),

@@ -19,8 +19,8 @@ use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64};
-use porosph_kernels::iisph::{self, FluidRows, Rows, Vel, VelMut, WallRows};
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
 use rayon::prelude::*;
 
@@ -54,14 +54,13 @@ pub(super) fn setup<'a>(
     tm: &mut PassTimes,
 ) -> PressureRows<'a> {
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (src, diag) = (zeros(n), zeros(n));
-    let (src_b, diag_b, p_b) = (zeros(na), zeros(na), zeros(na));
-    let (usx, usy, usz) = (zeros(ns), zeros(ns), zeros(ns));
-    let mobility = zeros(ns);
+    let (src, diag) = (zeros(arena, n), zeros(arena, n));
+    let (src_b, diag_b, p_b) = (zeros(arena, na), zeros(arena, na), zeros(arena, na));
+    let VelMut { x: usx, y: usy, z: usz } = zeros3(arena, ns);
+    let mobility = zeros(arena, ns);
     if ns > 0 {
         let v = model.predicted();
-        let c = zeros(ns);
+        let c = zeros(arena, ns);
         model.mobility(solids, c);
         for (k, &i) in w.solid_perm.iter().enumerate() {
             let i = i as usize;
@@ -70,7 +69,7 @@ pub(super) fn setup<'a>(
         }
     }
     let u_solid = Vel { x: usx, y: usy, z: usz };
-    let (src_s, diag_s) = (zeros(ns), zeros(ns));
+    let (src_s, diag_s) = (zeros(arena, ns), zeros(arena, ns));
     let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
     tm.time(Pass::PpeSetup, || {
         let rows = FluidRows {
@@ -171,19 +170,18 @@ pub(super) fn solve<'a>(
     st: &mut StepStats,
 ) -> Solved<'a> {
     let (n, ns) = (fluid.len(), solids.len());
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (apx, apy, apz) = (zeros(n), zeros(n), zeros(n));
-    let (asx, asy, asz) = (zeros(ns), zeros(ns), zeros(ns));
+    let VelMut { x: apx, y: apy, z: apz } = zeros3(arena, n);
+    let VelMut { x: asx, y: asy, z: asz } = zeros3(arena, ns);
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (rows.fluid.diag[i] != 0.0) as u32 as f64).max(1.0);
     let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid } = rows;
     let sys = PressureSystem {
         kernel: &p.kernel,
         fluid_grid: &w.fluid_grid,
-        fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+        fluid: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
         walls: WallInput {
             grid: &w.wall_grid,
-            walls: Points { x: &walls.x, y: &walls.y, z: &walls.z },
+            walls: Vel { x: &walls.x, y: &walls.y, z: &walls.z },
             active: &w.active,
         },
         ff: &w.ff,

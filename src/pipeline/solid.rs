@@ -16,9 +16,9 @@ use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
 use porosph_kernels::granular::Walls;
-use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// What a solid model did in one step.

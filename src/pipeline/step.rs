@@ -12,7 +12,7 @@ use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::max_f32;
 use porosph_kernels::granular::Walls;
-use porosph_kernels::iisph::Vel;
+use porosph_kernels::soa::Vel;
 use std::fmt;
 
 /// A step that cannot go on: a NaN or an exploding velocity.
