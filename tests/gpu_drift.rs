@@ -198,7 +198,7 @@ fn phase_vel<'a>(a: &'a [Vec<f32>; 3], n: usize, store: &'a mut Vec<Vec<&'a [f32
     PhaseVel { x: &store[0], y: &store[1], z: &store[2] }
 }
 
-/// The CPU pass as `pipeline::step::mixture_passes` runs it.
+/// The CPU pass as `pipeline::mixture::drift` runs it.
 fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
     let mut pf = vec![0.0; c.vol.len()];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
@@ -207,7 +207,7 @@ fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
 }
 
 /// The outer and inner passes of a step with porous solids, as
-/// `pipeline::step::mixture_passes` runs them (P-Eqs. 11-12).
+/// `pipeline::mixture::drift` runs them (P-Eqs. 11-12).
 fn cpu_porous(c: &Case, conservative: bool) -> (Out, Out) {
     let mut pf = vec![0.0; c.vol.len()];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);

@@ -2,23 +2,18 @@
 //! then the correction of the volume fractions.
 
 use super::mixture::NextFractions;
-use super::timing::{Pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::store::{FluidStore, SolidStore};
-use bumpalo::Bump;
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::phase_transport;
 use porosph_kernels::soa::Vel;
 
 /// Pass 13: u^{n+1} = u* + dt a (a = a^p and what the later passes added),
 /// x += dt u^{n+1}; solids: x += dt v^{n+1} (PHYSICS.md §3.3).
-pub(super) fn positions(
-    fluid: &mut FluidStore,
-    solids: &mut SolidStore,
-    u_star: Vel,
-    a: Vel,
-    dt: f32,
-    tm: &mut PassTimes,
-) {
+pub(super) fn positions(cx: &mut StepCtx, fluid: &mut FluidStore, solids: &mut SolidStore, u_star: Vel, a: Vel) {
+    let dt = cx.dt;
+    let tm = &mut cx.tm;
     tm.time(Pass::Integrate, || {
         let s = State {
             x: &mut fluid.x,
@@ -45,7 +40,9 @@ pub(super) fn positions(
 /// together, keeping the alpha/beta split), in f64, stored as the fluid's
 /// fractions and their low parts. Nothing with one phase and no porous
 /// solid.
-pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, arena: &Bump, tm: &mut PassTimes) {
+pub(super) fn correct_fractions(cx: &mut StepCtx, fluid: &mut FluidStore, next: NextFractions) {
+    let arena = cx.arena;
+    let tm = &mut cx.tm;
     let n = fluid.len();
     if next.alpha.is_empty() {
         return;

@@ -5,11 +5,11 @@
 //! PHYSICS.md §2.4), and with solids the solids' Morton order and the pairs
 //! FS, SF, SS, solid-wall and active-wall-solid. Everything it builds lives in the [`Workspace`].
 
-use super::timing::{Pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use super::{Params, Workspace};
 use crate::backend::passes::{StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
 use porosph_kernels::soa::Vel;
 
@@ -17,14 +17,14 @@ use porosph_kernels::soa::Vel;
 /// along the Morton curve; solids keep their store order (the pair lists
 /// see them in a sorted copy, `w.solid_perm`).
 pub(super) fn search(
-    p: &Params,
+    cx: &mut StepCtx,
     fluid: &mut FluidStore,
     walls: &WallStore,
     solids: &SolidStore,
     w: &mut Workspace,
-    arena: &Bump,
-    tm: &mut PassTimes,
 ) {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
     tm.time(Pass::Neighbors, || {

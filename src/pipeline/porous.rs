@@ -18,7 +18,8 @@
 //! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
 //! the strain it sees lags by one step (0 at the start: strain-free).
 
-use super::timing::{Pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -48,14 +49,14 @@ pub(super) struct Partition<'a> {
 /// to alpha_k; and the fill of each phase's absorbing solids around each
 /// fluid particle, for [`settle`] at the end of the step.
 pub(super) fn partition<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     solids: &SolidStore,
     walls: &WallStore,
     w: &Workspace,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> Partition<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         let mask = arena.alloc_slice_fill_iter(
             w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
@@ -105,7 +106,8 @@ pub(super) fn partition<'a>(
 /// alpha_k moves into beta_k (`porosph_kernels::porous::take_inside`).
 /// Applied after the step's exchange, so that the solids' wet mass of the
 /// next step sees the inner volume the step ends with.
-pub(super) fn settle(fluid: &mut FluidStore, part: &Partition, tm: &mut PassTimes) {
+pub(super) fn settle(cx: &mut StepCtx, fluid: &mut FluidStore, part: &Partition) {
+    let tm = &mut cx.tm;
     let n = fluid.len();
     tm.time(Pass::Porous, || {
         for (k, (alpha, beta)) in outer_inner(fluid).enumerate() {
@@ -126,17 +128,16 @@ fn outer_inner(fluid: &mut FluidStore) -> impl Iterator<Item = (Fractions<'_>, F
 /// with several phases also the fluid pairs of the inner transport
 /// (`w.ffb`: h^3 grad W, the full-particle volumes that the pressure
 /// solve's pair volumes, 0 for an inner particle, would cut off).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn solid_terms<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &mut Workspace,
     part: &Partition,
     mixture: bool,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> PoreTerms<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         if mixture {
             let active = near_inner_fluid(fluid, &w.ff, arena);
@@ -169,14 +170,9 @@ fn near_inner_fluid<'a>(fluid: &FluidStore, ff: &PairLists, arena: &'a Bump) -> 
 /// The absorption exchange of pass 12 (P-Eqs. 6-7, 22) within each
 /// particle, after the transport: alpha_k -= dt Gamma_k, beta_k += dt
 /// Gamma_k on the next fractions (phase k at `[k n, (k + 1) n)`).
-pub(super) fn exchange(
-    terms: &PoreTerms,
-    n: usize,
-    alpha_next: &mut [f64],
-    beta_next: &mut [f64],
-    dt: f32,
-    tm: &mut PassTimes,
-) {
+pub(super) fn exchange(cx: &mut StepCtx, terms: &PoreTerms, n: usize, alpha_next: &mut [f64], beta_next: &mut [f64]) {
+    let dt = cx.dt;
+    let tm = &mut cx.tm;
     tm.time(Pass::PhaseTransport, || {
         for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
             porosph_kernels::porous::exchange(&terms.gamma[k * n..(k + 1) * n], dt, a, b);

@@ -5,10 +5,9 @@
 //! step's start) or implicit (of u*, a linear solve: `Params::implicit_viscosity`).
 
 use super::phases::PhaseState;
-use super::timing::{Pass, PassTimes};
-use super::Params;
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::store::FluidStore;
-use bumpalo::Bump;
 use porosph_kernels::blocks::nblocks;
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
@@ -28,17 +27,15 @@ pub(super) struct Prediction<'a> {
 }
 
 /// Pass 3 over the fluid pairs `ff` (plain kernel gradients).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn predict<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &FluidStore,
     ff: &PairLists,
     visc_coef: &mut Vec<Vec<f32>>,
     ph: &PhaseState,
-    dt: f32,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> Prediction<'a> {
+    let (p, dt, arena) = (cx.p, cx.dt, cx.arena);
+    let tm = &mut cx.tm;
     let n = fluid.len();
     let mixture = p.mixture() && n > 0;
     let nm = if mixture { n } else { 0 };

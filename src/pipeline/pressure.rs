@@ -11,12 +11,14 @@
 use super::phases::PhaseState;
 use super::prediction::Prediction;
 use super::solid::{BodyResponse, SolidModel, SolidStats};
-use super::timing::{Pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use super::volumes::Volumes;
-use super::{Params, StepStats, Workspace};
-use crate::backend::passes::{PressureSystem, SolidSystem, SolidUnknowns, SolveSettings, Unknowns, WallInput};
+use super::Workspace;
+use crate::backend::passes::{
+    PressureSystem, SolidSystem, SolidUnknowns, SolveReport, SolveSettings, Unknowns, WallInput,
+};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
@@ -41,18 +43,17 @@ pub(super) struct PressureRows<'a> {
 /// u*_s are their predicted velocities ([`SolidModel::predict`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn setup<'a>(
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
-    solids: &SolidStore,
-    model: &dyn SolidModel,
+    (solids, model): (&SolidStore, &dyn SolidModel),
     w: &mut Workspace,
     ph: &PhaseState,
     vols: &Volumes,
     pred: &Prediction,
-    dt: f32,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> PressureRows<'a> {
+    let (dt, arena) = (cx.dt, cx.arena);
+    let tm = &mut cx.tm;
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
     let (src, diag) = (zeros(arena, n), zeros(arena, n));
     let (src_b, diag_b, p_b) = (zeros(arena, na), zeros(arena, na), zeros(arena, na));
@@ -145,19 +146,22 @@ pub(super) fn setup<'a>(
 /// What pass 5 gives the later passes.
 pub(super) struct Solved<'a> {
     /// a^p of the fluid, m/s^2 (the later passes add to it).
-    pub ap: [&'a mut [f32]; 3],
+    pub ap: VelMut<'a>,
     /// Solid pressures (sorted solid order), Pa.
     pub p_solid: &'a [f32],
     /// a^p_s of the solids, the bodies' response to the final pressures
     /// (store order), m/s^2.
     pub accel_solid: &'a [Vec3],
+    /// How the solve went, and the bodies' compliance solves within it.
+    pub report: SolveReport,
+    pub solid_stats: SolidStats,
 }
 
 /// Pass 5 on the step's backend: the pressures of every row and the final
 /// accelerations, until the mean predicted density error is at most eta.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     solids: &SolidStore,
@@ -165,10 +169,8 @@ pub(super) fn solve<'a>(
     w: &mut Workspace,
     vols: &Volumes,
     rows: PressureRows<'a>,
-    dt: f32,
-    arena: &'a Bump,
-    st: &mut StepStats,
 ) -> Solved<'a> {
+    let (p, dt, arena) = (cx.p, cx.dt, cx.arena);
     let (n, ns) = (fluid.len(), solids.len());
     let VelMut { x: apx, y: apy, z: apz } = zeros3(arena, n);
     let VelMut { x: asx, y: asy, z: asz } = zeros3(arena, ns);
@@ -237,13 +239,8 @@ pub(super) fn solve<'a>(
             response: &mut response,
         }),
     };
-    let report = st.times.time(Pass::PressureSolve, || w.backend.pressure_solve(&sys, x, arena));
-    st.iterations = report.iterations;
-    st.density_error = report.density_error;
-    st.solid_density_error = report.solid_error;
-    st.solve_restarts = report.restarts;
-    st.times.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
-    st.cg_iterations += response.stats.iterations;
-    st.cg_residual = st.cg_residual.max(response.stats.residual);
-    Solved { ap: [apx, apy, apz], p_solid, accel_solid }
+    let report = cx.tm.time(Pass::PressureSolve, || w.backend.pressure_solve(&sys, x, arena));
+    cx.tm.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
+    let solid_stats = response.stats;
+    Solved { ap: VelMut { x: apx, y: apy, z: apz }, p_solid, accel_solid, report, solid_stats }
 }

@@ -4,10 +4,10 @@
 //! (the fluid's: its outer mixture's rest density times V0 / V).
 
 use super::phases::PhaseState;
-use super::timing::{Pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use super::{Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::elasticity::RestState;
 use porosph_kernels::iisph::{self, SolidPairs};
@@ -39,17 +39,16 @@ pub(super) struct Volumes<'a> {
 }
 
 /// Passes 2 and 4a-b; writes the output densities of the fluid and the walls.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn volumes<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     solids: &SolidStore,
     w: &Workspace,
     ph: &PhaseState,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> Volumes<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
     let (sigma, vol, vm) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
     let (sigma_b, vol_b, vol_b_full) = (zeros(arena, na), zeros(arena, na), zeros(arena, walls.len()));
