@@ -24,6 +24,7 @@ pub use solid::{Current, Peer2018, SolidModel, SolidStats};
 pub use step::{DtLimit, StepError};
 pub use timing::{Pass, PassTimes};
 
+use crate::backend::Passes;
 use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -193,9 +194,6 @@ struct Workspace {
     solid_v0: Vec<f32>,
     /// 0..number of solids (the identity row map of the solid rows).
     solid_rows: Vec<u32>,
-    /// Who runs the passes a backend may run (`Simulation::use_gpu`;
-    /// the CPU by default).
-    backend: Box<dyn crate::backend::Passes>,
 }
 
 /// A running simulation: state, time, and what it needs to step.
@@ -207,6 +205,9 @@ pub struct Simulation {
     pub solids: SolidStore,
     /// How the solids deform.
     pub solid_model: Box<dyn SolidModel>,
+    /// Who runs the passes a backend may run (`Simulation::use_gpu`; the
+    /// CPU by default).
+    backend: Box<dyn Passes>,
     /// Simulated time, s.
     pub time: f64,
     /// Steps taken.

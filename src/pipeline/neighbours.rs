@@ -8,7 +8,7 @@
 use super::step::StepCtx;
 use super::timing::Pass;
 use super::{Params, Workspace};
-use crate::backend::passes::{StepShape, WallInput};
+use crate::backend::passes::{Passes, StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
 use porosph_kernels::soa::Vel;
@@ -22,6 +22,7 @@ pub(super) fn search(
     walls: &WallStore,
     solids: &SolidStore,
     w: &mut Workspace,
+    backend: &mut dyn Passes,
 ) {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
@@ -29,7 +30,7 @@ pub(super) fn search(
     let mut gpu_ms = 0.0;
     tm.time(Pass::Neighbors, || {
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        gpu_ms += w.backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
+        gpu_ms += backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(&w.perm, &mut w.reorder);
         }
@@ -55,7 +56,7 @@ pub(super) fn search(
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
-        gpu_ms += w.backend.prepare(&w.fluid_grid, walls, shape);
+        gpu_ms += backend.prepare(&w.fluid_grid, walls, shape);
     });
     tm.set_gpu(Pass::Neighbors, gpu_ms);
 }

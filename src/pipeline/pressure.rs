@@ -16,7 +16,7 @@ use super::timing::Pass;
 use super::volumes::Volumes;
 use super::Workspace;
 use crate::backend::passes::{
-    PressureSystem, SolidSystem, SolidUnknowns, SolveReport, SolveSettings, Unknowns, WallInput,
+    Passes, PressureSystem, SolidSystem, SolidUnknowns, SolveReport, SolveSettings, Unknowns, WallInput,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
@@ -164,9 +164,9 @@ pub(super) fn solve<'a>(
     cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
-    solids: &SolidStore,
-    model: &mut dyn SolidModel,
-    w: &mut Workspace,
+    (solids, model): (&SolidStore, &mut dyn SolidModel),
+    w: &Workspace,
+    backend: &mut dyn Passes,
     vols: &Volumes,
     rows: PressureRows<'a>,
 ) -> Solved<'a> {
@@ -239,7 +239,7 @@ pub(super) fn solve<'a>(
             response: &mut response,
         }),
     };
-    let report = cx.tm.time(Pass::PressureSolve, || w.backend.pressure_solve(&sys, x, arena));
+    let report = cx.tm.time(Pass::PressureSolve, || backend.pressure_solve(&sys, x, arena));
     cx.tm.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
     let solid_stats = response.stats;
     Solved { ap: VelMut { x: apx, y: apy, z: apz }, p_solid, accel_solid, report, solid_stats }

@@ -6,6 +6,7 @@
 
 use super::setup::wall_workspace;
 use super::{Params, Simulation, StepStats};
+use crate::backend::Passes;
 use crate::scene::Scene;
 use crate::store::{Column, FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -61,6 +62,7 @@ impl Simulation {
             walls,
             solids,
             solid_model,
+            backend: Box::<dyn Passes>::default(),
             time,
             step,
             dt,

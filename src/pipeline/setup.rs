@@ -5,6 +5,7 @@ use super::granular::{Granular, Mixed};
 use super::solid::{Peer2018, SolidModel};
 use super::step::explicit_viscosity_bound;
 use super::{Params, Simulation, StepStats, Workspace};
+use crate::backend::Passes;
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
     SolidMaterial, ViscositySolver,
@@ -307,6 +308,7 @@ impl Simulation {
             walls,
             solids,
             solid_model,
+            backend: Box::<dyn Passes>::default(),
             time: 0.0,
             step: 0,
             dt: 0.0,

@@ -9,6 +9,7 @@ use super::solid::SolidModel;
 use super::timing::{Pass, PassTimes};
 use super::{integrate, mixture, neighbours, phases, porous, prediction, pressure, solid, volumes};
 use super::{Params, Simulation, StepStats, Workspace};
+use crate::backend::Passes;
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::max_f32;
@@ -50,11 +51,12 @@ impl Simulation {
                 (self.solids.vx[i], self.solids.vy[i], self.solids.vz[i]) = (v[0], v[1], v[2]);
             }
         }
-        let Simulation { params, fluid, walls, solids, solid_model, work, arena, .. } = self;
+        let Simulation { params, fluid, walls, solids, solid_model, backend, work, arena, .. } = self;
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
-        let mut stats = step_passes(params, fluid, walls, bodies, work, arena, dt);
+        let cx = StepCtx { p: params, dt, arena, tm: PassTimes::default() };
+        let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work);
         arena.reset();
-        if let Some(reason) = work.backend.take_error() {
+        if let Some(reason) = backend.take_error() {
             return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
         }
         self.time += dt as f64;
@@ -237,22 +239,22 @@ pub(super) struct StepCtx<'a> {
 /// pressures within it (the backend's loop), the velocities before the
 /// transport.
 fn step_passes(
-    p: &Params,
+    mut cx: StepCtx,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     bodies: Bodies,
+    backend: &mut dyn Passes,
     w: &mut Workspace,
-    arena: &Bump,
-    dt: f32,
 ) -> StepStats {
     let mut st = StepStats::default();
-    let cx = &mut StepCtx { p, dt, arena, tm: PassTimes::default() };
+    let (p, dt) = (cx.p, cx.dt);
+    let cx = &mut cx;
     let Bodies { store: solids, model } = bodies;
     let porous = p.porous() && !solids.is_empty() && !fluid.is_empty();
 
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
-    neighbours::search(cx, fluid, walls, solids, w);
+    neighbours::search(cx, fluid, walls, solids, w, backend);
     let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
@@ -290,7 +292,7 @@ fn step_passes(
     // 25-29), in which the bodies give way with their compliance; Alg. 2's
     // boundary forces on the solids and Alg. 4's velocities of the solids.
     let rows = pressure::setup(cx, fluid, walls, (solids, model), w, &ph, &vols, &pred);
-    let solved = pressure::solve(cx, fluid, walls, solids, model, w, &vols, rows);
+    let solved = pressure::solve(cx, fluid, walls, (solids, model), w, backend, &vols, rows);
     st.iterations = solved.report.iterations;
     st.density_error = solved.report.density_error;
     st.solid_density_error = solved.report.solid_error;
@@ -321,7 +323,7 @@ fn step_passes(
     let pairs = MixturePairs { ff: &w.ff, ffb: porous.then_some(&w.ffb) };
     let drift = (p.mixture() && !fluid.is_empty()).then(|| {
         let inp = (&ph, vols.vol, &pred);
-        mixture::drift(cx, fluid, &w.fluid_grid, pairs, w.backend.as_mut(), inp, terms.as_ref(), ap.view())
+        mixture::drift(cx, fluid, &w.fluid_grid, pairs, backend, inp, terms.as_ref(), ap.view())
     });
     if let Some(d) = &drift {
         mixture::drift_momentum(cx, fluid, &w.ff, &ph, d, ap.reborrow());
