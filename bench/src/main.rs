@@ -58,12 +58,61 @@
 //! timing starts; the inner volume per phase and the solid's saturation are
 //! printed at the start and the end of the measured steps.
 
+use clap::Parser;
 use porosph::backend::gpu::GpuBackend;
 use porosph::backend::{BackendKind, GpuPasses};
 use porosph::pipeline::{Pass, Simulation};
 use porosph::scene::Scene;
 use std::io::Write;
 use std::time::Instant;
+
+/// Dam-break (or porous, or scene-file) benchmark of the whole step, per
+/// pass.
+#[derive(Parser)]
+#[command(name = "porosph-bench", about)]
+struct Cli {
+    /// Particle spacing, m (default 0.015625; a scene file's own unless given).
+    #[arg(long, value_name = "M", conflicts_with = "particles")]
+    spacing: Option<f32>,
+    /// Particles per m^3 instead of a spacing: spacing = 1 / cbrt(N).
+    #[arg(long, value_name = "N")]
+    particles: Option<f64>,
+    /// Steps in all, warm-up included.
+    #[arg(long, default_value_t = 60)]
+    steps: u64,
+    /// Steps before the measurement starts.
+    #[arg(long, default_value_t = 10)]
+    warmup: u64,
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Mean density error of the pressure solve, fraction (default 0.001;
+    /// a scene file's own unless given).
+    #[arg(long, value_name = "FRACTION")]
+    max_error: Option<f32>,
+    /// Time step, s (default 0.001; a scene file's max_dt unless given).
+    #[arg(long, value_name = "S")]
+    dt: Option<f32>,
+    /// Phases of the dam break's even mixture.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    phases: usize,
+    /// Add an elastic block (0.5 m cube, Peer 2018) in the dam's path.
+    #[arg(long)]
+    solid: bool,
+    /// The porous three-phase scene instead of the dam break.
+    #[arg(long)]
+    porous: bool,
+    /// A scene file instead of the built-in scenes.
+    #[arg(long, value_name = "FILE")]
+    scene: Option<String>,
+    /// Append the result as one JSON line to FILE.
+    #[arg(long, value_name = "FILE")]
+    json: Option<String>,
+    #[arg(long, value_name = "cpu|gpu", default_value = "cpu")]
+    backend: BackendKind,
+    /// The passes `--backend gpu` runs on the GPU (comma-separated, or `all`).
+    #[arg(long, value_name = "PASSES", default_value = "all")]
+    gpu_passes: GpuPasses,
+}
 
 struct Args {
     spacing: f32,
@@ -73,9 +122,7 @@ struct Args {
     max_error: f32,
     dt: f32,
     phases: usize,
-    /// Add an elastic block (0.5 m cube, Peer 2018) in the dam's path.
     solid: bool,
-    /// The porous three-phase scene instead of the dam break (module doc).
     porous: bool,
     /// A scene file instead of the built-in scenes; `--spacing`, `--dt`
     /// (its max_dt) and `--max-error` override its values only when given.
@@ -95,62 +142,24 @@ struct Given {
 }
 
 fn parse() -> Result<Args, String> {
+    let c = Cli::parse();
+    let spacing = c.spacing.or(c.particles.map(|n| (1.0 / n.cbrt()) as f32));
     let mut a = Args {
-        spacing: 0.015625,
-        steps: 60,
-        warmup: 10,
-        threads: 2,
-        max_error: 0.001,
-        dt: 0.001,
-        phases: 1,
-        solid: false,
-        porous: false,
-        scene: None,
-        given: Given::default(),
-        json: None,
-        backend: BackendKind::Cpu,
-        gpu_passes: GpuPasses::ALL,
+        spacing: spacing.unwrap_or(0.015625),
+        steps: c.steps,
+        warmup: c.warmup,
+        threads: c.threads,
+        max_error: c.max_error.unwrap_or(0.001),
+        dt: c.dt.unwrap_or(0.001),
+        phases: c.phases,
+        solid: c.solid,
+        porous: c.porous,
+        scene: c.scene,
+        given: Given { spacing: spacing.is_some(), dt: c.dt.is_some(), max_error: c.max_error.is_some() },
+        json: c.json,
+        backend: c.backend,
+        gpu_passes: c.gpu_passes,
     };
-    let mut it = std::env::args().skip(1);
-    while let Some(k) = it.next() {
-        let mut v = || it.next().ok_or(format!("{k} needs a value"));
-        match k.as_str() {
-            "--spacing" => {
-                a.spacing = v()?.parse().map_err(|e| format!("--spacing: {e}"))?;
-                a.given.spacing = true;
-            }
-            "--particles" => {
-                let n: f64 = v()?.parse().map_err(|e| format!("--particles: {e}"))?;
-                a.spacing = (1.0 / n.cbrt()) as f32;
-                a.given.spacing = true;
-            }
-            "--steps" => a.steps = v()?.parse().map_err(|e| format!("--steps: {e}"))?,
-            "--warmup" => a.warmup = v()?.parse().map_err(|e| format!("--warmup: {e}"))?,
-            "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
-            "--max-error" => {
-                a.max_error = v()?.parse().map_err(|e| format!("--max-error: {e}"))?;
-                a.given.max_error = true;
-            }
-            "--dt" => {
-                a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?;
-                a.given.dt = true;
-            }
-            "--scene" => a.scene = Some(v()?),
-            "--phases" => a.phases = v()?.parse().map_err(|e| format!("--phases: {e}"))?,
-            "--json" => a.json = Some(v()?),
-            "--solid" => a.solid = true,
-            "--porous" => a.porous = true,
-            "--backend" => a.backend = v()?.parse()?,
-            "--gpu-passes" => a.gpu_passes = v()?.parse()?,
-            "-h" | "--help" => {
-                return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
-                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--solid] [--porous] [--scene FILE] [--json FILE] \
-                            [--backend cpu|gpu] [--gpu-passes LIST]"
-                    .into())
-            }
-            _ => return Err(format!("unknown argument {k}")),
-        }
-    }
     if a.steps <= a.warmup {
         return Err("--steps must exceed --warmup".into());
     }
@@ -172,7 +181,7 @@ fn parse() -> Result<Args, String> {
     Ok(a)
 }
 
-/// The `--porous` scene (module doc).
+/// The `--porous` scene.
 fn porous_scene(a: &Args) -> Result<Scene, String> {
     let text = format!(
         r#"[simulation]
