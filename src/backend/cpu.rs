@@ -115,6 +115,17 @@ impl Passes for Cpu {
     fn take_error(&mut self) -> Option<String> {
         None
     }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+impl Default for Box<dyn Passes> {
+    /// The CPU backend.
+    fn default() -> Self {
+        Box::new(Cpu)
+    }
 }
 
 /// Pass 5 on the CPU: relaxed Jacobi (P-Eqs. 27-28) until the mean

@@ -8,7 +8,6 @@
 //! device and hands the others, and any pass whose device run fails, to the
 //! CPU. Every other pass of the step runs on the CPU.
 
-use super::gpu::GpuBackend;
 use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::grid::CellGrid;
@@ -152,17 +151,9 @@ pub trait Passes: Send {
     /// the CPU; the run reports it as a step error).
     fn take_error(&mut self) -> Option<String>;
 
-    /// The GPU backend, if this is one.
-    fn gpu(&self) -> Option<&GpuBackend> {
-        None
-    }
-}
-
-impl Default for Box<dyn Passes> {
-    /// The CPU backend.
-    fn default() -> Self {
-        Box::new(super::cpu::Cpu)
-    }
+    /// The backend as its own type (`Simulation::gpu` finds the GPU
+    /// backend's statistics through it).
+    fn as_any(&self) -> &dyn std::any::Any;
 }
 
 /// What kind of step the backend prepares for.

@@ -18,6 +18,6 @@ impl Simulation {
 
     /// The GPU backend, if any.
     pub fn gpu(&self) -> Option<&GpuBackend> {
-        self.backend.gpu()
+        self.backend.as_any().downcast_ref::<GpuBackend>()
     }
 }

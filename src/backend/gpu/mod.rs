@@ -409,7 +409,7 @@ impl Passes for GpuBackend {
         self.error.take()
     }
 
-    fn gpu(&self) -> Option<&GpuBackend> {
-        Some(self)
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 }
