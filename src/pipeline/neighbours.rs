@@ -7,7 +7,7 @@
 
 use super::step::StepCtx;
 use super::timing::Pass;
-use super::{Params, Workspace};
+use super::{PairSet, Params, Workspace};
 use crate::backend::passes::{Passes, StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
@@ -22,6 +22,7 @@ pub(super) fn search(
     walls: &WallStore,
     solids: &SolidStore,
     w: &mut Workspace,
+    pairs: &mut PairSet,
     backend: &mut dyn Passes,
 ) {
     let (p, arena) = (cx.p, cx.arena);
@@ -39,20 +40,20 @@ pub(super) fn search(
         w.fluid_grid.build(&w.keys, support);
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
-        build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
-        build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+        build_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        build_pairs(&mut pairs.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
         if !solids.is_empty() {
-            solid_pairs(p, fluid, solids, walls, w);
+            solid_pairs(p, fluid, solids, walls, w, pairs);
         }
-        active_walls(walls.len(), !solids.is_empty(), w);
+        active_walls(walls.len(), !solids.is_empty(), w, pairs);
         let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
         let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
         let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
         let ap = Vel { x: ax, y: ay, z: az };
-        build_pairs(&mut w.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
+        build_pairs(&mut pairs.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
         if !solids.is_empty() {
             let [sx, sy, sz] = &w.solid_sorted;
-            build_pairs(&mut w.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
+            build_pairs(&mut pairs.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
@@ -63,13 +64,13 @@ pub(super) fn search(
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs
 /// (and with solids of the solid-wall pairs) with a positive kernel weight.
-fn active_walls(nw: usize, solids: bool, w: &mut Workspace) {
+fn active_walls(nw: usize, solids: bool, w: &mut Workspace, pairs: &PairSet) {
     w.wall_flag.resize(nw, 0);
     for &b in &w.active {
         w.wall_flag[b as usize] = 0;
     }
-    let sb = if solids { w.sb.used() } else { &[] };
-    for blk in w.fb.used().iter().chain(sb) {
+    let sb = if solids { pairs.sb.used() } else { &[] };
+    for blk in pairs.fb.used().iter().chain(sb) {
         for (&b, &wt) in blk.j.iter().zip(&blk.w) {
             if wt > 0.0 {
                 w.wall_flag[b as usize] = 1;
@@ -83,7 +84,14 @@ fn active_walls(nw: usize, solids: bool, w: &mut Workspace) {
 /// Pass 0 for solids: Morton order of the solid positions (a sorted copy;
 /// the store keeps its order), the solid grid, and the fluid-solid,
 /// solid-fluid, solid-solid and solid-wall pairs (solids in the sorted order).
-fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &WallStore, w: &mut Workspace) {
+fn solid_pairs(
+    p: &Params,
+    fluid: &FluidStore,
+    solids: &SolidStore,
+    walls: &WallStore,
+    w: &mut Workspace,
+    pairs: &mut PairSet,
+) {
     let ns = solids.len();
     let support = p.kernel.support;
     w.solid_keys.resize(ns, 0);
@@ -103,9 +111,9 @@ fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &Wall
     let [sx, sy, sz] = &w.solid_sorted;
     let sp = Vel { x: sx, y: sy, z: sz };
     let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-    build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
-    build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
-    build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    build_pairs(&mut pairs.fs, fp, sp, &w.solid_grid, None, &p.kernel);
+    build_pairs(&mut pairs.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
+    build_pairs(&mut pairs.ss, sp, sp, &w.solid_grid, None, &p.kernel);
     let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
-    build_pairs(&mut w.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+    build_pairs(&mut pairs.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
 }

@@ -7,7 +7,8 @@
 //! 1. [`partition`], right after the neighbour search: N_f (P-Eq. 15) and
 //!    P Alg. 4's fallback (beta back to alpha where N_f = 0).
 //! 2. [`pore_state`], before the pressure solve scales the fluid-solid pair
-//!    gradients: phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
+//!    gradients (it reads the plain `PairSet`, which `pressure::setup`
+//!    borrows for the rest of the step once it scales it): phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
 //!    grad p^pore, q_k and u_betak on the solids (P-Eqs. 1, 19), and on the
 //!    fluid u_betak,f, q_k,f, grad p^pore_fk, Gamma_k and the surface
 //!    capillary normal (P-Eqs. 16-18, 20-22).
@@ -20,7 +21,7 @@
 
 use super::step::StepCtx;
 use super::timing::Pass;
-use super::{Params, Workspace};
+use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
@@ -54,6 +55,7 @@ pub(super) fn partition<'a>(
     solids: &SolidStore,
     walls: &WallStore,
     w: &Workspace,
+    pairs: &PairSet,
 ) -> Partition<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
@@ -62,7 +64,7 @@ pub(super) fn partition<'a>(
             w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
         );
         let n_f = zeros(arena, fluid.len());
-        iisph::kernel_sums(&w.fs, mask, n_f);
+        iisph::kernel_sums(&pairs.fs, mask, n_f);
         for (alpha, beta) in outer_inner(fluid) {
             release_outside(n_f, alpha, beta);
         }
@@ -81,7 +83,7 @@ pub(super) fn partition<'a>(
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
                 r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume
             }));
-            iisph::kernel_sums(&w.fs, absorbs, fill);
+            iisph::kernel_sums(&pairs.fs, absorbs, fill);
         }
         // Walls fill the neighbourhood as well as the solid does: a partly
         // absorbed particle inside a soaking block next to the tank's floor
@@ -89,7 +91,7 @@ pub(super) fn partition<'a>(
         // compressed by both, and its pressure rose tenfold per step to
         // 2.7e9 Pa.
         let walls_fill = zeros(arena, n);
-        iisph::kernel_sums(&w.fb, &walls.rest_volume, walls_fill);
+        iisph::kernel_sums(&pairs.fb, &walls.rest_volume, walls_fill);
         for fill in fill.chunks_mut(n.max(1)) {
             for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
                 if *f > 0.0 {
@@ -133,6 +135,7 @@ pub(super) fn solid_terms<'a>(
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &mut Workspace,
+    pairs: &PairSet,
     part: &Partition,
     mixture: bool,
 ) -> PoreTerms<'a> {
@@ -140,10 +143,10 @@ pub(super) fn solid_terms<'a>(
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         if mixture {
-            let active = near_inner_fluid(fluid, &w.ff, arena);
-            w.ffb.copy_scaled_where(&w.ff, p.cell_volume(), active);
+            let active = near_inner_fluid(fluid, &pairs.ff, arena);
+            w.ffb.copy_scaled_where(&pairs.ff, p.cell_volume(), active);
         }
-        pore_state(p, fluid, solids, w, arena, part.n_f, part.mask)
+        pore_state(p, fluid, solids, w, pairs, arena, part)
     })
 }
 
@@ -201,16 +204,17 @@ pub(super) struct PoreTerms<'a> {
 }
 
 /// Passes 6, 7 and 9 (module doc). `n_f` and `mask` come from
-/// [`partition`]; `w.fs` must still hold plain kernel gradients.
+/// [`partition`]; `pairs.fs` must still hold plain kernel gradients.
 fn pore_state<'a>(
     p: &Params,
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &Workspace,
+    pairs: &PairSet,
     arena: &'a Bump,
-    n_f: &[f32],
-    mask: &[f32],
+    part: &Partition,
 ) -> PoreTerms<'a> {
+    let (n_f, mask) = (part.n_f, part.mask);
     let (n, ns, np) = (fluid.len(), solids.len(), fluid.alpha.len());
     let perm = &w.solid_perm;
     let cell = p.cell_volume();
@@ -224,7 +228,7 @@ fn pore_state<'a>(
         beta_over_n.par_iter_mut().zip(fluid.beta[k].par_iter()).zip(inv_n.par_iter()).for_each(|((o, b), i)| {
             *o = b * i;
         });
-        absorbed_volume(&w.sf, beta_over_n, mask, out);
+        absorbed_volume(&pairs.sf, beta_over_n, mask, out);
     }
     let phi: &[&[f32]] = arena.alloc_slice_fill_iter(phi.chunks(ns.max(1)).take(np));
 
@@ -244,7 +248,7 @@ fn pore_state<'a>(
     {
         let mass_s = arena.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
         let rho_s = zeros(arena, ns);
-        iisph::kernel_sums(&w.ss, mass_s, rho_s);
+        iisph::kernel_sums(&pairs.ss, mass_s, rho_s);
         for k in 0..ns {
             let i = perm[k] as usize;
             let sat: f32 = (0..np).map(|ph| phi[ph][k]).sum();
@@ -260,7 +264,7 @@ fn pore_state<'a>(
     // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
     // u_rk = q_k / e, u_betak = u_rk + v_s.
     let VelMut { x: gx, y: gy, z: gz } = zeros3(arena, ns);
-    pore_gradient(&w.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
+    pore_gradient(&pairs.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
         let VelMut { x: qx, y: qy, z: qz } = zeros3(arena, ns);
@@ -290,7 +294,7 @@ fn pore_state<'a>(
     // Pass 9 on the fluid.
     let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, n);
     let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
-    capillary_normal(&w.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
+    capillary_normal(&pairs.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
     let [ubx, uby, ubz] = flat(arena);
     let [qfx, qfy, qfz] = flat(arena);
@@ -314,7 +318,7 @@ fn pore_state<'a>(
             grad_pore: VelMut { x: &mut gpx[r.clone()], y: &mut gpy[r.clone()], z: &mut gpz[r.clone()] },
             gamma: &mut gamma[r],
         };
-        fluid_phase_terms(&w.fs, solid, fl, out);
+        fluid_phase_terms(&pairs.fs, solid, fl, out);
     }
 
     let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);

@@ -5,7 +5,7 @@
 //! steps bit for bit like the one that was saved.
 
 use super::setup::wall_workspace;
-use super::{Params, Simulation, StepStats};
+use super::{PairSet, Params, Simulation, StepStats};
 use crate::backend::Passes;
 use crate::scene::Scene;
 use crate::store::{Column, FluidStore, SolidStore, WallStore};
@@ -63,6 +63,7 @@ impl Simulation {
             solids,
             solid_model,
             backend: Box::<dyn Passes>::default(),
+            pairs: PairSet::default(),
             time,
             step,
             dt,

@@ -4,7 +4,7 @@
 use super::granular::{Granular, Mixed};
 use super::solid::{Peer2018, SolidModel};
 use super::step::explicit_viscosity_bound;
-use super::{Params, Simulation, StepStats, Workspace};
+use super::{PairSet, Params, Simulation, StepStats, Workspace};
 use crate::backend::Passes;
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
@@ -309,6 +309,7 @@ impl Simulation {
             solids,
             solid_model,
             backend: Box::<dyn Passes>::default(),
+            pairs: PairSet::default(),
             time: 0.0,
             step: 0,
             dt: 0.0,

@@ -8,7 +8,7 @@ use super::mixture::MixturePairs;
 use super::solid::SolidModel;
 use super::timing::{Pass, PassTimes};
 use super::{integrate, mixture, neighbours, phases, porous, prediction, pressure, solid, volumes};
-use super::{Params, Simulation, StepStats, Workspace};
+use super::{PairSet, Params, Simulation, StepStats, Workspace};
 use crate::backend::Passes;
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -51,10 +51,10 @@ impl Simulation {
                 (self.solids.vx[i], self.solids.vy[i], self.solids.vz[i]) = (v[0], v[1], v[2]);
             }
         }
-        let Simulation { params, fluid, walls, solids, solid_model, backend, work, arena, .. } = self;
+        let Simulation { params, fluid, walls, solids, solid_model, backend, work, pairs, arena, .. } = self;
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
         let cx = StepCtx { p: params, dt, arena, tm: PassTimes::default() };
-        let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work);
+        let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work, pairs);
         arena.reset();
         if let Some(reason) = backend.take_error() {
             return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
@@ -238,13 +238,14 @@ pub(super) struct StepCtx<'a> {
 /// after the neighbour search, the volumes and rows before the solve, the
 /// pressures within it (the backend's loop), the velocities before the
 /// transport.
-fn step_passes(
-    mut cx: StepCtx,
+fn step_passes<'a>(
+    mut cx: StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     bodies: Bodies,
     backend: &mut dyn Passes,
     w: &mut Workspace,
+    pairs: &'a mut PairSet,
 ) -> StepStats {
     let mut st = StepStats::default();
     let (p, dt) = (cx.p, cx.dt);
@@ -254,13 +255,13 @@ fn step_passes(
 
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
-    neighbours::search(cx, fluid, walls, solids, w, backend);
-    let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w));
+    neighbours::search(cx, fluid, walls, solids, w, pairs, backend);
+    let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w, pairs));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
     let ph = phases::bookkeeping(cx, fluid, porous);
-    let vols = volumes::volumes(cx, fluid, walls, solids, w, &ph);
-    let pred = prediction::predict(cx, fluid, &w.ff, &mut w.visc_coef, &ph);
+    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph);
+    let pred = prediction::predict(cx, fluid, &pairs.ff, &mut w.visc_coef, &ph);
     st.viscosity_iterations = pred.iterations;
     // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and
     // u_beta on the solids (P-Eqs. 1, 9, 15, 19); and Alg. 3's fluid terms
@@ -270,15 +271,15 @@ fn step_passes(
     if !solids.is_empty() {
         solid::strain(cx, solids, model);
     }
-    let terms = part.as_ref().map(|part| porous::solid_terms(cx, fluid, solids, w, part, p.mixture()));
+    let terms = part.as_ref().map(|part| porous::solid_terms(cx, fluid, solids, w, pairs, part, p.mixture()));
     if let Some(t) = &terms {
         st.max_darcy_speed = t.max_darcy_speed;
     }
     if !solids.is_empty() {
         let [sx, sy, sz] = &w.solid_sorted;
         let near = solid::Current {
-            ss: &w.ss,
-            sb: &w.sb,
+            ss: &pairs.ss,
+            sb: &pairs.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
             walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
@@ -291,7 +292,7 @@ fn step_passes(
     // Alg. 1: a^press, the pressure solve with pressure boundaries (P-Eqs.
     // 25-29), in which the bodies give way with their compliance; Alg. 2's
     // boundary forces on the solids and Alg. 4's velocities of the solids.
-    let rows = pressure::setup(cx, fluid, walls, (solids, model), w, &ph, &vols, &pred);
+    let rows = pressure::setup(cx, fluid, walls, (solids, model), w, pairs, (&ph, &vols, &pred));
     let solved = pressure::solve(cx, fluid, walls, (solids, model), w, backend, &vols, rows);
     st.iterations = solved.report.iterations;
     st.density_error = solved.report.density_error;
@@ -300,12 +301,14 @@ fn step_passes(
     st.cg_iterations += solved.solid_stats.iterations;
     st.cg_residual = st.cg_residual.max(solved.solid_stats.residual);
     let mut ap = solved.ap;
+    // From here on the pairs are V̄_ij grad W_ij.
+    let scaled = solved.pairs.lists();
     if !solids.is_empty() {
         solid::finish(cx, solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm);
         let [sx, sy, sz] = &w.solid_sorted;
         let near = solid::Current {
-            ss: &w.ss,
-            sb: &w.sb,
+            ss: &scaled.ss,
+            sb: &scaled.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
             walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
@@ -320,23 +323,23 @@ fn step_passes(
     // Alg. 3 with two or more phases: the drift velocities (pass 10, P-Eqs.
     // 11-12), whose a reads a^p + a^pore + a^cap, and the drift momentum
     // a^Dm, added to a^p (pass 11).
-    let pairs = MixturePairs { ff: &w.ff, ffb: porous.then_some(&w.ffb) };
+    let mixture_pairs = MixturePairs { ff: &scaled.ff, ffb: porous.then_some(&w.ffb) };
     let drift = (p.mixture() && !fluid.is_empty()).then(|| {
         let inp = (&ph, vols.vol, &pred);
-        mixture::drift(cx, fluid, &w.fluid_grid, pairs, backend, inp, terms.as_ref(), ap.view())
+        mixture::drift(cx, fluid, &w.fluid_grid, mixture_pairs, backend, inp, terms.as_ref(), ap.view())
     });
     if let Some(d) = &drift {
-        mixture::drift_momentum(cx, fluid, &w.ff, &ph, d, ap.reborrow());
+        mixture::drift_momentum(cx, fluid, &scaled.ff, &ph, d, ap.reborrow());
         st.max_drift_speed = d.max_speed;
         st.cfl_drift_speed = d.cfl_speed;
     }
     // Alg. 3: the transport (pass 12, P-Eqs. 2, 6-7) at the old positions,
     // then the absorption exchange (P-Eq. 22).
-    let next = mixture::transport(cx, fluid, pairs, drift.as_ref(), porous);
+    let next = mixture::transport(cx, fluid, mixture_pairs, drift.as_ref(), porous);
     if let Some(t) = &terms {
         porous::exchange(cx, t, fluid.len(), &mut *next.alpha, &mut *next.beta);
         let ap = [&mut *ap.x, &mut *ap.y, &mut *ap.z];
-        cx.tm.time(Pass::Porous, || porous::wall_guard(p, fluid, walls, &w.fb, pred.u_star, dt, ap));
+        cx.tm.time(Pass::Porous, || porous::wall_guard(p, fluid, walls, &scaled.fb, pred.u_star, dt, ap));
     }
     // Alg. 4: integration of P-Eqs. 6-8, then sum_k (alpha_k + beta_k) = 1.
     integrate::positions(cx, fluid, solids, pred.u_star, ap.view());

@@ -6,7 +6,7 @@
 use super::phases::PhaseState;
 use super::step::StepCtx;
 use super::timing::Pass;
-use super::{Params, Workspace};
+use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
 use porosph_kernels::elasticity::RestState;
@@ -45,6 +45,7 @@ pub(super) fn volumes<'a>(
     walls: &mut WallStore,
     solids: &SolidStore,
     w: &Workspace,
+    pairs: &PairSet,
     ph: &PhaseState,
 ) -> Volumes<'a> {
     let (p, arena) = (cx.p, cx.arena);
@@ -65,14 +66,20 @@ pub(super) fn volumes<'a>(
     let own = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_own[i as usize]));
     let (sigma_s, vol_s) = (zeros(arena, ns), zeros(arena, ns));
     tm.time(Pass::Densities, || {
-        let fs = (ns > 0).then_some(SolidPairs { pairs: &w.fs, values: &*v0_s });
-        iisph::fluid_volumes(&w.ff, &w.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
-        iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
+        let fs = (ns > 0).then_some(SolidPairs { pairs: &pairs.fs, values: &*v0_s });
+        iisph::fluid_volumes(&pairs.ff, &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
+        iisph::wall_volumes(&pairs.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
         if ns > 0 {
-            let nb =
-                SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: body_s, fixed: fixed_s, no_walls: no_walls_s };
+            let nb = SolidNeighbours {
+                sf: &pairs.sf,
+                sb: &pairs.sb,
+                ss: &pairs.ss,
+                body: body_s,
+                fixed: fixed_s,
+                no_walls: no_walls_s,
+            };
             solid_rows::solid_volumes(nb, own, ph.v0, &walls.rest_volume, v0_s, sigma_s, vol_s);
-            solid_rows::wall_solid_volumes(&w.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
+            solid_rows::wall_solid_volumes(&pairs.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
         }
         // Output density of every wall: its fluid-free value, then the
         // active walls' (no dependence on the last step's active set, which
