@@ -26,13 +26,13 @@ use porosph::backend::GpuPasses;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::kernel::{Kernel, KernelShape};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
 use porosph_kernels::porous;
 
 use gpu_common::Rng;
+use porosph_kernels::soa::{Vel, VelMut};
 
 const NP: usize = 3;
 
@@ -88,7 +88,7 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
     grid.build(&keys, support);
     let n = x[0].len();
     let mut ff = PairLists::default();
-    let pts = Points { x: &x[0], y: &x[1], z: &x[2] };
+    let pts = Vel { x: &x[0], y: &x[1], z: &x[2] };
     build_pairs(&mut ff, pts, pts, &grid, None, &kernel);
 
     let cell = h * h * h;
@@ -198,7 +198,7 @@ fn phase_vel<'a>(a: &'a [Vec<f32>; 3], n: usize, store: &'a mut Vec<Vec<&'a [f32
     PhaseVel { x: &store[0], y: &store[1], z: &store[2] }
 }
 
-/// The CPU pass as `pipeline::step::mixture_passes` runs it.
+/// The CPU pass as `pipeline::mixture::drift` runs it.
 fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
     let mut pf = vec![0.0; c.vol.len()];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
@@ -207,7 +207,7 @@ fn cpu(c: &Case, fraction: bool, conservative: bool) -> Out {
 }
 
 /// The outer and inner passes of a step with porous solids, as
-/// `pipeline::step::mixture_passes` runs them (P-Eqs. 11-12).
+/// `pipeline::mixture::drift` runs them (P-Eqs. 11-12).
 fn cpu_porous(c: &Case, conservative: bool) -> (Out, Out) {
     let mut pf = vec![0.0; c.vol.len()];
     drift::pressure_per_fraction(&c.pressure, &c.alpha_f, &mut pf);
@@ -301,7 +301,7 @@ fn gpu_run(
     let inp = DriftInput {
         kernel: &c.kernel,
         fluid_grid: &c.grid,
-        fluid: Points { x: &c.x[0], y: &c.x[1], z: &c.x[2] },
+        fluid: Vel { x: &c.x[0], y: &c.x[1], z: &c.x[2] },
         vol: &c.vol,
         alpha: &alpha,
         alpha_f: &c.alpha_f,
@@ -311,11 +311,11 @@ fn gpu_run(
         phases: &c.phases,
         conservative,
         porous: porous.then(|| PorousDriftInput {
-            grad_pore: flat(&c.grad_pore),
+            grad_pore: vel(&c.grad_pore),
             pore_drift: PORE_DRIFT,
             beta: &beta,
             beta_f: &c.beta_f,
-            q: flat(&c.q),
+            q: vel(&c.q),
             inner_tau: INNER_TAU,
             inner_sigma: INNER_SIGMA,
             cell_volume: c.cell,
@@ -326,18 +326,14 @@ fn gpu_run(
     {
         let [ux, uy, uz] = &mut u;
         let [fx, fy, fz] = &mut f;
-        let out = DriftOutput { ux, uy, uz, fx, fy, fz };
+        let out = DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } };
         let [ux, uy, uz] = &mut bu;
         let [fx, fy, fz] = &mut bf;
-        let inner = porous.then_some(DriftOutput { ux, uy, uz, fx, fy, fz });
+        let inner =
+            porous.then_some(DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } });
         g.drift(&inp, out, inner).expect("GPU drift pass");
     }
     ((u, f), (bu, bf))
-}
-
-/// Three component arrays as slices.
-fn flat(a: &[Vec<f32>; 3]) -> [&[f32]; 3] {
-    [&a[0], &a[1], &a[2]]
 }
 
 /// max |a - b| / max |b|.

@@ -25,11 +25,12 @@ use porosph::backend::gpu::{GpuContext, IisphGpu, RangesGpu, SolveInput, SolveOu
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::chebyshev::{self, Weights};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, Vel, VelMut, WallRows};
+use porosph_kernels::iisph::{self, FluidRows, Jacobi, Rows, WallRows};
 use porosph_kernels::kernel::{Kernel, KernelShape};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 
 use gpu_common::Rng;
+use porosph_kernels::soa::{Vel, VelMut};
 
 /// Random input of the Jacobi loop: everything pass 5 reads.
 struct Case {
@@ -69,8 +70,8 @@ fn sorted(mut x: [Vec<f32>; 3], support: f32) -> ([Vec<f32>; 3], CellGrid) {
     (x, grid)
 }
 
-fn points(x: &[Vec<f32>; 3]) -> Points<'_> {
-    Points { x: &x[0], y: &x[1], z: &x[2] }
+fn points(x: &[Vec<f32>; 3]) -> Vel<'_> {
+    Vel { x: &x[0], y: &x[1], z: &x[2] }
 }
 
 /// A jittered block of `nx ny nz` fluid particles (spacing h, jitter

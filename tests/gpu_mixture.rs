@@ -20,7 +20,7 @@ mod common;
 mod gpu_common;
 
 use porosph::backend::GpuPasses;
-use porosph::pipeline::timing::pass;
+use porosph::pipeline::Pass;
 use porosph::pipeline::Simulation;
 use std::collections::HashMap;
 
@@ -142,7 +142,7 @@ fn porous_run_with_gpu_drift_matches_cpu_for_300_steps() {
         let mut device_ms = 0.0;
         for step in 1..=300 {
             let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
-            device_ms += st.times.gpu_ms[pass::DRIFT];
+            device_ms += st.times.gpu(Pass::Drift);
             assert!(sim.fluid.beta[1].iter().all(|&b| b == 0.0), "green entered the solid");
             for (m, m0) in sim.phase_masses().iter().zip(&m0) {
                 drift_mass = drift_mass.max(((m - m0) / m0).abs());

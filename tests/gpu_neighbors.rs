@@ -11,7 +11,8 @@ mod gpu_common;
 use gpu_common::Rng;
 use porosph::backend::GpuPasses;
 use porosph::pipeline::Simulation;
-use porosph_kernels::neighbors::{compute_keys, sort_permutation, Points};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation};
+use porosph_kernels::soa::Vel;
 
 #[test]
 fn gpu_sort_is_bitwise_the_cpu_sort_on_100k_random_particles() {
@@ -30,7 +31,7 @@ fn gpu_sort_is_bitwise_the_cpu_sort_on_100k_random_particles() {
     x[0][101] = -1e6;
     x[1][102] = x[1][103];
     let inv_cell = 1.0 / 0.02f32;
-    let pts = Points { x: &x[0], y: &x[1], z: &x[2] };
+    let pts = Vel { x: &x[0], y: &x[1], z: &x[2] };
     let mut keys = vec![0u64; n];
     compute_keys(pts.x, pts.y, pts.z, inv_cell, &mut keys);
     let (mut cpu_sort, mut cpu_perm) = (Vec::new(), Vec::new());

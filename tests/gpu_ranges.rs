@@ -12,9 +12,10 @@ mod gpu_common;
 use porosph::backend::gpu::ranges::{fluid_rows, wall_rows};
 use porosph::backend::gpu::{GpuContext, RangesGpu, WallInput};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::neighbors::{compute_keys, sort_permutation, Points};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation};
 
 use gpu_common::Rng;
+use porosph_kernels::soa::Vel;
 
 /// Random points in a box, sorted by Morton cell, and their grid.
 fn sorted(n: usize, lo: f32, hi: f32, support: f32, rng: &mut Rng) -> ([Vec<f32>; 3], CellGrid) {
@@ -37,7 +38,7 @@ fn cpu_tables(fluid_grid: &CellGrid, walls: Option<WallInput>) -> Tables {
     let no_walls = CellGrid::default();
     let (wall_grid, pts, active) = match walls {
         Some(w) => (w.grid, w.walls, w.active),
-        None => (&no_walls, Points { x: &[], y: &[], z: &[] }, &[][..]),
+        None => (&no_walls, Vel { x: &[], y: &[], z: &[] }, &[][..]),
     };
     let (mut cell_row, mut ff, mut fb, mut bf) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     fluid_rows(fluid_grid, wall_grid, &mut cell_row, &mut ff, &mut fb);
@@ -66,7 +67,7 @@ fn gpu_cell_ranges_are_bitwise_the_cpu_tables_on_100k_particles() {
     // Fluid around the origin (negative cells too), walls overlapping it.
     let (_fx, fluid_grid) = sorted(100_000, -0.5, 0.5, support, &mut rng);
     let (wx, wall_grid) = sorted(30_000, -0.3, 0.7, support, &mut rng);
-    let walls = Points { x: &wx[0], y: &wx[1], z: &wx[2] };
+    let walls = Vel { x: &wx[0], y: &wx[1], z: &wx[2] };
     let active: Vec<u32> = (0..30_000u32).filter(|_| rng.range(0.0, 1.0) < 0.5).collect();
     for input in [Some(WallInput { grid: &wall_grid, walls, active: &active }), None] {
         let t = std::time::Instant::now();
@@ -105,7 +106,7 @@ fn gpu_cell_ranges_are_rebuilt_when_their_input_changes() {
     let (_a, grid_a) = sorted(20_000, -0.5, 0.5, support, &mut rng);
     let (_b, grid_b) = sorted(12_000, -0.4, 0.6, support, &mut rng);
     let (wx, wall_grid) = sorted(5_000, -0.3, 0.7, support, &mut rng);
-    let walls = Points { x: &wx[0], y: &wx[1], z: &wx[2] };
+    let walls = Vel { x: &wx[0], y: &wx[1], z: &wx[2] };
     let active: Vec<u32> = (0..5_000u32).filter(|_| rng.range(0.0, 1.0) < 0.5).collect();
     let fewer: Vec<u32> = active.iter().copied().filter(|b| b % 3 == 0).collect();
     let w = |active| Some(WallInput { grid: &wall_grid, walls, active });

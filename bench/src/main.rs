@@ -58,12 +58,61 @@
 //! timing starts; the inner volume per phase and the solid's saturation are
 //! printed at the start and the end of the measured steps.
 
+use clap::Parser;
 use porosph::backend::gpu::GpuBackend;
 use porosph::backend::{BackendKind, GpuPasses};
-use porosph::pipeline::{Simulation, PASSES};
+use porosph::pipeline::{Pass, Simulation};
 use porosph::scene::Scene;
 use std::io::Write;
 use std::time::Instant;
+
+/// Dam-break (or porous, or scene-file) benchmark of the whole step, per
+/// pass.
+#[derive(Parser)]
+#[command(name = "porosph-bench", about)]
+struct Cli {
+    /// Particle spacing, m (default 0.015625; a scene file's own unless given).
+    #[arg(long, value_name = "M", conflicts_with = "particles")]
+    spacing: Option<f32>,
+    /// Particles per m^3 instead of a spacing: spacing = 1 / cbrt(N).
+    #[arg(long, value_name = "N")]
+    particles: Option<f64>,
+    /// Steps in all, warm-up included.
+    #[arg(long, default_value_t = 60)]
+    steps: u64,
+    /// Steps before the measurement starts.
+    #[arg(long, default_value_t = 10)]
+    warmup: u64,
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Mean density error of the pressure solve, fraction (default 0.001;
+    /// a scene file's own unless given).
+    #[arg(long, value_name = "FRACTION")]
+    max_error: Option<f32>,
+    /// Time step, s (default 0.001; a scene file's max_dt unless given).
+    #[arg(long, value_name = "S")]
+    dt: Option<f32>,
+    /// Phases of the dam break's even mixture.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    phases: usize,
+    /// Add an elastic block (0.5 m cube, Peer 2018) in the dam's path.
+    #[arg(long)]
+    solid: bool,
+    /// The porous three-phase scene instead of the dam break.
+    #[arg(long)]
+    porous: bool,
+    /// A scene file instead of the built-in scenes.
+    #[arg(long, value_name = "FILE")]
+    scene: Option<String>,
+    /// Append the result as one JSON line to FILE.
+    #[arg(long, value_name = "FILE")]
+    json: Option<String>,
+    #[arg(long, value_name = "cpu|gpu", default_value = "cpu")]
+    backend: BackendKind,
+    /// The passes `--backend gpu` runs on the GPU (comma-separated, or `all`).
+    #[arg(long, value_name = "PASSES", default_value = "all")]
+    gpu_passes: GpuPasses,
+}
 
 struct Args {
     spacing: f32,
@@ -73,9 +122,7 @@ struct Args {
     max_error: f32,
     dt: f32,
     phases: usize,
-    /// Add an elastic block (0.5 m cube, Peer 2018) in the dam's path.
     solid: bool,
-    /// The porous three-phase scene instead of the dam break (module doc).
     porous: bool,
     /// A scene file instead of the built-in scenes; `--spacing`, `--dt`
     /// (its max_dt) and `--max-error` override its values only when given.
@@ -95,62 +142,24 @@ struct Given {
 }
 
 fn parse() -> Result<Args, String> {
+    let c = Cli::parse();
+    let spacing = c.spacing.or(c.particles.map(|n| (1.0 / n.cbrt()) as f32));
     let mut a = Args {
-        spacing: 0.015625,
-        steps: 60,
-        warmup: 10,
-        threads: 2,
-        max_error: 0.001,
-        dt: 0.001,
-        phases: 1,
-        solid: false,
-        porous: false,
-        scene: None,
-        given: Given::default(),
-        json: None,
-        backend: BackendKind::Cpu,
-        gpu_passes: GpuPasses::ALL,
+        spacing: spacing.unwrap_or(0.015625),
+        steps: c.steps,
+        warmup: c.warmup,
+        threads: c.threads,
+        max_error: c.max_error.unwrap_or(0.001),
+        dt: c.dt.unwrap_or(0.001),
+        phases: c.phases,
+        solid: c.solid,
+        porous: c.porous,
+        scene: c.scene,
+        given: Given { spacing: spacing.is_some(), dt: c.dt.is_some(), max_error: c.max_error.is_some() },
+        json: c.json,
+        backend: c.backend,
+        gpu_passes: c.gpu_passes,
     };
-    let mut it = std::env::args().skip(1);
-    while let Some(k) = it.next() {
-        let mut v = || it.next().ok_or(format!("{k} needs a value"));
-        match k.as_str() {
-            "--spacing" => {
-                a.spacing = v()?.parse().map_err(|e| format!("--spacing: {e}"))?;
-                a.given.spacing = true;
-            }
-            "--particles" => {
-                let n: f64 = v()?.parse().map_err(|e| format!("--particles: {e}"))?;
-                a.spacing = (1.0 / n.cbrt()) as f32;
-                a.given.spacing = true;
-            }
-            "--steps" => a.steps = v()?.parse().map_err(|e| format!("--steps: {e}"))?,
-            "--warmup" => a.warmup = v()?.parse().map_err(|e| format!("--warmup: {e}"))?,
-            "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
-            "--max-error" => {
-                a.max_error = v()?.parse().map_err(|e| format!("--max-error: {e}"))?;
-                a.given.max_error = true;
-            }
-            "--dt" => {
-                a.dt = v()?.parse().map_err(|e| format!("--dt: {e}"))?;
-                a.given.dt = true;
-            }
-            "--scene" => a.scene = Some(v()?),
-            "--phases" => a.phases = v()?.parse().map_err(|e| format!("--phases: {e}"))?,
-            "--json" => a.json = Some(v()?),
-            "--solid" => a.solid = true,
-            "--porous" => a.porous = true,
-            "--backend" => a.backend = v()?.parse()?,
-            "--gpu-passes" => a.gpu_passes = v()?.parse()?,
-            "-h" | "--help" => {
-                return Err("usage: porosph-bench [--spacing M | --particles N] [--steps N] [--warmup N] \
-                            [--threads N] [--max-error FRACTION] [--dt S] [--phases K] [--solid] [--porous] [--scene FILE] [--json FILE] \
-                            [--backend cpu|gpu] [--gpu-passes LIST]"
-                    .into())
-            }
-            _ => return Err(format!("unknown argument {k}")),
-        }
-    }
     if a.steps <= a.warmup {
         return Err("--steps must exceed --warmup".into());
     }
@@ -172,7 +181,7 @@ fn parse() -> Result<Args, String> {
     Ok(a)
 }
 
-/// The `--porous` scene (module doc).
+/// The `--porous` scene.
 fn porous_scene(a: &Args) -> Result<Scene, String> {
     let text = format!(
         r#"[simulation]
@@ -393,10 +402,10 @@ fn bench(a: &Args) {
         setup_s,
         a.threads
     );
-    let mut pass_ms = [0.0f64; PASSES.len()];
+    let mut pass_ms = [0.0f64; Pass::COUNT];
     // The same over the clean steps only (< 5 % foreign load).
-    let mut clean_ms = [0.0f64; PASSES.len()];
-    let mut gpu_ms = [0.0f64; PASSES.len()];
+    let mut clean_ms = [0.0f64; Pass::COUNT];
+    let mut gpu_ms = [0.0f64; Pass::COUNT];
     let (mut iters, mut wall_s, mut measured, mut min_dt) = (0u64, 0.0f64, 0u64, f32::MAX);
     let mut cg_iters = 0u64;
     let mut visc_iters = 0u64;
@@ -465,7 +474,7 @@ fn bench(a: &Args) {
             sim.solids.len(),
             sim.solid_model.name(),
             cg_iters as f64 / m,
-            pass_ms[PASSES.iter().position(|q| *q == "elasticity").unwrap_or(0)] / m * 1e6 / sim.solids.len() as f64
+            pass_ms[Pass::Elasticity.index()] / m * 1e6 / sim.solids.len() as f64
         );
     }
     println!(
@@ -503,15 +512,15 @@ fn bench(a: &Args) {
         );
     }
     if a.porous {
-        let ms = |p: &str| PASSES.iter().position(|q| *q == p).map_or(0.0, |k| pass_ms[k] / m);
+        let ms = |p: Pass| pass_ms[p.index()] / m;
         println!(
             "porous pass          {:.2} ms = {:.1} ns per fluid particle-step; elasticity {:.2} ms, \
              drift {:.2} ms, phase_transport {:.2} ms",
-            ms("porous"),
-            ms("porous") * 1e6 / n as f64,
-            ms("elasticity"),
-            ms("drift"),
-            ms("phase_transport")
+            ms(Pass::Porous),
+            ms(Pass::Porous) * 1e6 / n as f64,
+            ms(Pass::Elasticity),
+            ms(Pass::Drift),
+            ms(Pass::PhaseTransport)
         );
         if let Some(s0) = &soak_start {
             print_soak("soak at first timed step", s0);
@@ -534,7 +543,7 @@ fn bench(a: &Args) {
         "ms per pass (mean; wall, and device time of passes on the GPU{}):",
         if nc > 0 { format!("; then the mean over the {nc} clean steps") } else { String::new() }
     );
-    for (((p, v), g), c) in PASSES.iter().zip(pass_ms).zip(gpu_ms).zip(clean_ms) {
+    for (((p, v), g), c) in Pass::ALL.iter().zip(pass_ms).zip(gpu_ms).zip(clean_ms) {
         let clean = if nc > 0 { format!("  (clean {:.2})", c / nc as f64) } else { String::new() };
         if g > 0.0 {
             println!("  {:<16} {:8.2}  (GPU device {:.2}){clean}", p, v / m, g / m);
@@ -542,19 +551,17 @@ fn bench(a: &Args) {
             println!("  {:<16} {:8.2}{clean}", p, v / m);
         }
     }
-    if let Some(k) = PASSES.iter().position(|q| *q == "pressure_solve") {
-        println!("pressure_solve ms per Jacobi iteration {:.3}", pass_ms[k] / iters.max(1) as f64);
-    }
+    let k = Pass::PressureSolve.index();
+    println!("pressure_solve ms per Jacobi iteration {:.3}", pass_ms[k] / iters.max(1) as f64);
     if phases > 1 {
         println!("mixture passes, ns per particle-step:");
-        for p in ["drift", "drift_momentum", "phase_transport", "phase_correction"] {
-            if let Some(k) = PASSES.iter().position(|q| *q == p) {
-                println!("  {:<16} {:8.1}", p, pass_ms[k] / m * 1e6 / n as f64);
-            }
+        for p in [Pass::Drift, Pass::DriftMomentum, Pass::PhaseTransport, Pass::PhaseCorrection] {
+            println!("  {:<16} {:8.1}", p.name(), pass_ms[p.index()] / m * 1e6 / n as f64);
         }
     }
     if let Some(path) = &a.json {
-        let passes: Vec<String> = PASSES.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
+        let passes: Vec<String> =
+            Pass::ALL.iter().zip(pass_ms).map(|(p, v)| format!("\"{p}\": {:.3}", v / m)).collect();
         let line = format!(
             "{{\"fluid_particles\": {n}, \"phases\": {}, \"spacing\": {}, \"threads\": {}, \"dt\": {}, \"max_error\": {}, \
              \"steps\": {measured}, \"warmup\": {}, \"mean_s_per_step\": {:.5}, \"median_s_per_step\": {:.5}, \

@@ -76,10 +76,10 @@
 //! alpha_k u_mk would be 0.
 
 use crate::blocks::BLOCK;
-use crate::iisph::Vel;
 use crate::lanes::{gather, load, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
-use crate::phases::{PhaseConstants, PhaseVel, VelMut, MIN_ALPHA_F, MIN_PHASE_FRACTION};
+use crate::phases::{PhaseConstants, PhaseVel, MIN_ALPHA_F, MIN_PHASE_FRACTION};
+use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// p / alpha_f per particle (0 where alpha_f < 0.01), so that the phase
@@ -284,7 +284,7 @@ pub struct AdvectiveDrift<'a> {
     /// The porous term `scale` e_k, e_k per phase k at `[k n, (k + 1) n)`
     /// of each component: P-Eq. 11's -phi grad p^pore_k, P-Eq. 12's
     /// -tau' q_k ([`crate::porous::add_phase_term`]).
-    pub porous: Option<([&'a [f32]; 3], f32)>,
+    pub porous: Option<(Vel<'a>, f32)>,
 }
 
 /// The largest advective drift speed max_k |u_mk - (its diffusion part)|
@@ -323,7 +323,7 @@ pub fn max_advective_speed(inp: &AdvectiveDrift) -> f32 {
             let c = &inp.phases[k];
             let mut t = a.map(|a| c.tau * c.density * a);
             if let Some((e, scale)) = inp.porous {
-                for (t, e) in t.iter_mut().zip(e) {
+                for (t, e) in t.iter_mut().zip([e.x, e.y, e.z]) {
                     *t += scale * e[k * n + i];
                 }
             }

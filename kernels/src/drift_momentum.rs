@@ -16,7 +16,8 @@
 use crate::blocks::BLOCK;
 use crate::lanes::{gather, load, sum, F, LANES};
 use crate::neighbors::PairLists;
-use crate::phases::{PhaseVel, VelMut};
+use crate::phases::PhaseVel;
+use crate::soa::VelMut;
 use rayon::prelude::*;
 
 /// Inputs of [`drift_momentum`].

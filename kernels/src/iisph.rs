@@ -19,6 +19,7 @@
 use crate::blocks::BLOCK;
 use crate::lanes::{gather, load, store, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
+use crate::soa::{Vel, VelMut};
 use rayon::iter::Either;
 use rayon::prelude::*;
 
@@ -154,28 +155,6 @@ pub(crate) fn scale_pairs(blk: &mut PairBlock, q: usize, vi: f32, vol_t: &[f32])
         store(&mut blk.gy, k, y * s);
         store(&mut blk.gz, k, z * s);
         k += LANES;
-    }
-}
-
-/// Velocities as three slices.
-#[derive(Clone, Copy)]
-pub struct Vel<'a> {
-    pub x: &'a [f32],
-    pub y: &'a [f32],
-    pub z: &'a [f32],
-}
-
-/// Three mutable component slices (an output vector field).
-pub struct VelMut<'a> {
-    pub x: &'a mut [f32],
-    pub y: &'a mut [f32],
-    pub z: &'a mut [f32],
-}
-
-impl VelMut<'_> {
-    /// The same arrays, borrowed again for a shorter time.
-    pub fn reborrow(&mut self) -> VelMut<'_> {
-        VelMut { x: &mut *self.x, y: &mut *self.y, z: &mut *self.z }
     }
 }
 

@@ -2,7 +2,7 @@
 //! (PHYSICS.md §6).
 
 use crate::blocks::BLOCK;
-use crate::iisph::Vel;
+use crate::soa::Vel;
 use rayon::prelude::*;
 
 /// Positions and velocities to update in place.

@@ -154,6 +154,22 @@ impl Kernel {
     pub fn grad_scale(&self) -> f32 {
         self.l
     }
+
+    /// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of
+    /// two lattice layers (its own layer and the one behind it), spacing
+    /// d = `h`. About 0.725 for the cubic spline with H = 2d.
+    pub fn flat_wall_gamma(&self, h: f32) -> f32 {
+        let mut s = 0.0f64;
+        for c in [0i32, -1] {
+            for a in -3i32..=3 {
+                for b in -3i32..=3 {
+                    let r = h * ((a * a + b * b + c * c) as f32).sqrt();
+                    s += self.w(r) as f64;
+                }
+            }
+        }
+        (s * (h as f64).powi(3)) as f32
+    }
 }
 
 /// Wendland C2 at H = 2 d on the cubic lattice of spacing d: d^3 sum_j W_ij

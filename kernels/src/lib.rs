@@ -19,5 +19,6 @@ pub mod neighbors;
 pub mod phase_transport;
 pub mod phases;
 pub mod porous;
+pub mod soa;
 pub mod solid_rows;
 pub mod viscosity;

@@ -10,6 +10,7 @@ use crate::blocks::BLOCK;
 use crate::grid::{cell_of, morton, CellGrid};
 use crate::kernel::{Kernel, KernelShape};
 use crate::lanes::{load, load_partial, store, F, LANES};
+use crate::soa::Vel;
 use rayon::prelude::*;
 
 /// The pairs of one block of query particles (local CSR).
@@ -146,26 +147,6 @@ pub fn sort_permutation(keys: &[u64], scratch: &mut Vec<(u64, u32)>, perm: &mut 
     perm.extend(scratch.iter().map(|&(_, i)| i));
 }
 
-/// Positions as three coordinate slices.
-#[derive(Clone, Copy)]
-pub struct Points<'a> {
-    pub x: &'a [f32],
-    pub y: &'a [f32],
-    pub z: &'a [f32],
-}
-
-impl Points<'_> {
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    /// Whether there are no points.
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-}
-
 /// Finds, for every query point, all target points with |x_q - x_t| < H
 /// (H = `kernel.support`; the support is half-open, W(H) = 0), and stores
 /// their kernel values and gradients. Targets must be sorted by the cells of
@@ -180,8 +161,8 @@ impl Points<'_> {
 /// with one lookup instead of 27.
 pub fn build_pairs(
     lists: &mut PairLists,
-    query: Points,
-    target: Points,
+    query: Vel,
+    target: Vel,
     grid: &CellGrid,
     near: Option<&CellGrid>,
     kernel: &Kernel,

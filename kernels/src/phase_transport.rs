@@ -38,10 +38,10 @@
 //!   front), not in a uniform bulk.
 
 use crate::blocks::BLOCK;
-use crate::iisph::Vel;
 use crate::lanes::{gather, load, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{join, split, PhaseVel};
+use crate::soa::Vel;
 use rayon::prelude::*;
 use wide::Select;
 

@@ -5,6 +5,9 @@
 //! so the store's `alpha` (and later `beta`) and arena scratch both pass as
 //! explicit slices, the way a GPU pass binds one buffer per array.
 
+use crate::soa::Vel;
+use bumpalo::Bump;
+
 /// Below this outer fraction alpha_f a particle has no drift (u_mk = 0) and
 /// takes no part in the pressure solve (PHYSICS.md §2.4, §4.1).
 pub use crate::iisph::MIN_ALPHA_F;
@@ -58,19 +61,26 @@ pub struct PhaseVel<'a> {
 }
 
 impl<'a> PhaseVel<'a> {
+    /// Per-phase views of a field holding phase k at `[k n, (k + 1) n)`
+    /// of each component (the slice lists from `arena`).
+    pub fn split(arena: &'a Bump, v: Vel<'a>, n: usize) -> PhaseVel<'a> {
+        PhaseVel {
+            x: arena.alloc_slice_fill_iter(v.x.chunks(n.max(1))),
+            y: arena.alloc_slice_fill_iter(v.y.chunks(n.max(1))),
+            z: arena.alloc_slice_fill_iter(v.z.chunks(n.max(1))),
+        }
+    }
+
     /// Number of phases.
     pub fn phases(&self) -> usize {
         self.x.len()
     }
 
     /// The field of phase `k`.
-    pub fn phase(&self, k: usize) -> crate::iisph::Vel<'a> {
-        crate::iisph::Vel { x: self.x[k], y: self.y[k], z: self.z[k] }
+    pub fn phase(&self, k: usize) -> Vel<'a> {
+        Vel { x: self.x[k], y: self.y[k], z: self.z[k] }
     }
 }
-
-/// Three output slices of a vector field (one pass writes them together).
-pub use crate::iisph::VelMut;
 
 #[cfg(test)]
 mod tests {

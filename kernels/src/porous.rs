@@ -29,9 +29,9 @@
 //! absorbed volume seen by the solids is the fluid's inner volume.
 
 use crate::blocks::BLOCK;
-use crate::iisph::{Vel, VelMut};
 use crate::neighbors::PairLists;
 use crate::phases::{join, split};
+use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// Pass 6, P-Eq. 15 for phase k: phi_sk = sum_f beta_fk W_sf / N_f over the

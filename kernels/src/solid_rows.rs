@@ -29,9 +29,10 @@
 //!   and SS, and (Ap)_s = dt^2 sum_j g_sj.(a_s - a_j) (walls: a_b = 0).
 
 use crate::blocks::BLOCK;
-use crate::iisph::{add_relative_accel, scale_pairs, weighted_sum, Jacobi, Rows, Vel, VelMut};
+use crate::iisph::{add_relative_accel, scale_pairs, weighted_sum, Jacobi, Rows};
 use crate::lanes::{gather, load, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
+use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// The neighbours of the solid rows (queries in the sorted solid order).

@@ -3,17 +3,16 @@
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
 use crate::blocks::{sum_f64, BLOCK};
-use crate::iisph::Vel;
 use crate::lanes::{gather, load, store, sum, F, LANES};
-use crate::neighbors::{PairBlock, PairLists, Points};
-use crate::phases::VelMut;
+use crate::neighbors::{PairBlock, PairLists};
+use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// Inputs of the viscosity pass.
 pub struct ViscosityInput<'a> {
     /// Fluid-fluid pairs with unscaled gradients grad W_ij.
     pub ff: &'a PairLists,
-    pub x: Points<'a>,
+    pub x: Vel<'a>,
     pub u: Vel<'a>,
     /// Rest (mixture) density rho_fm, kg/m^3.
     pub rest_density: &'a [f32],

@@ -7,12 +7,12 @@
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::Vel;
 use porosph_kernels::kernel::Kernel;
 use porosph_kernels::lanes::{gather, load, store, sum, F, LANES};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 use porosph_kernels::phase_transport::{correct, correction_sums, transport, TransportScratch};
-use porosph_kernels::phases::{join, PhaseConstants, PhaseVel, VelMut};
+use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
+use porosph_kernels::soa::{Vel, VelMut};
 use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
 use wide::Select;
 
@@ -57,7 +57,7 @@ fn lattice(n: usize, rng: &mut Lcg) -> Lattice {
     let mut g = CellGrid::default();
     g.build(&sk, h);
     let mut ff = PairLists::default();
-    let pt = Points { x: &x, y: &y, z: &z };
+    let pt = Vel { x: &x, y: &y, z: &z };
     build_pairs(&mut ff, pt, pt, &g, None, &Kernel::new(h));
     Lattice { x, y, z, ff }
 }
@@ -285,7 +285,7 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
     let mu = vec![0.5f32; n];
     let inp = ViscosityInput {
         ff: &lat.ff,
-        x: Points { x: &lat.x, y: &lat.y, z: &lat.z },
+        x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
         u: Vel { x: &u[0], y: &u[1], z: &u[2] },
         rest_density: &rho,
         mu: &mu,

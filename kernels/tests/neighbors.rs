@@ -2,7 +2,8 @@
 
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
+use porosph_kernels::soa::Vel;
 
 struct Lcg(u64);
 impl Lcg {
@@ -52,7 +53,7 @@ fn random_sets_match_brute_force() {
             .map(|_| [offset + extent * rng.next(), offset + extent * rng.next(), offset + extent * rng.next()])
             .collect();
         let (x, y, z, g) = sorted(&pts, h);
-        let p = Points { x: &x, y: &y, z: &z };
+        let p = Vel { x: &x, y: &y, z: &z };
         let mut l = PairLists::default();
         build_pairs(&mut l, p, p, &g, None, &kernel);
         let got = pairs_of(&l);
@@ -98,7 +99,7 @@ fn pairs_at_the_support_radius() {
                 let mut b = a;
                 b[axis] += dist;
                 let (x, y, z, g) = sorted(&[a, b], h);
-                let p = Points { x: &x, y: &y, z: &z };
+                let p = Vel { x: &x, y: &y, z: &z };
                 let mut l = PairLists::default();
                 build_pairs(&mut l, p, p, &g, None, &kernel);
                 let found = pairs_of(&l)[0].len() == 2;

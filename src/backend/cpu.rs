@@ -13,18 +13,15 @@ use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::chebyshev;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{self, Jacobi, SolidPairs, Vel, VelMut};
-use porosph_kernels::neighbors::{compute_keys, sort_permutation, Points};
+use porosph_kernels::iisph::{self, Jacobi, SolidPairs};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows;
 
 /// Every pass on the CPU.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Cpu;
-
-fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
-    arena.alloc_slice_fill_copy(n, 0.0f32)
-}
 
 impl Passes for Cpu {
     fn kind(&self) -> BackendKind {
@@ -33,7 +30,7 @@ impl Passes for Cpu {
 
     fn sort(
         &mut self,
-        fluid: Points,
+        fluid: Vel,
         inv_cell: f32,
         keys: &mut Vec<u64>,
         sort: &mut Vec<(u64, u32)>,
@@ -65,7 +62,7 @@ impl Passes for Cpu {
         let density = arena.alloc_slice_fill_iter(inp.phases.iter().map(|c| c.density));
         let sums = MixtureSums { arena, n, density, conservative: inp.conservative };
         // P-Eq. 11: the outer drift over the pressure solve's pairs.
-        let DriftOutput { ux, uy, uz, fx, fy, fz } = out;
+        let DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } } = out;
         let pv = PhaseVelocityInput {
             ff: prob.ff,
             alpha_f: inp.alpha_f,
@@ -81,17 +78,16 @@ impl Passes for Cpu {
             // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
             if let Some(pd) = &inp.porous {
                 let r = k * n..(k + 1) * n;
-                let [gx, gy, gz] = pd.grad_pore;
-                let e = Vel { x: &gx[r.clone()], y: &gy[r.clone()], z: &gz[r] };
+                let e = pd.grad_pore.range(r);
                 porosph_kernels::porous::add_phase_term(inp.alpha[k], inp.alpha_f, e, -pd.pore_drift, v, w);
             }
         }
         sums.drift_velocities(inp.alpha, inp.alpha_f, [&mut *ux, &mut *uy, &mut *uz], [&mut *fx, &mut *fy, &mut *fz]);
-        let mut max_speed = drift::max_drift_speed(phase_vel(arena, ux, uy, uz, n), n);
+        let mut max_speed = drift::max_drift_speed(PhaseVel::split(arena, Vel { x: ux, y: uy, z: uz }, n), n);
         // P-Eq. 12: the inner drift over the pairs with h^3 grad W (inner
         // particles have no pressure-solve volume).
         if let (Some(pd), Some(ffb), Some(out)) = (&inp.porous, prob.ffb, inner) {
-            let DriftOutput { ux: bx, uy: by, uz: bz, fx: gx, fy: gy, fz: gz } = out;
+            let DriftOutput { u: VelMut { x: bx, y: by, z: bz }, f: VelMut { x: gx, y: gy, z: gz } } = out;
             let pv = PhaseVelocityInput {
                 ff: ffb,
                 alpha_f: pd.beta_f,
@@ -107,17 +103,29 @@ impl Passes for Cpu {
                 drift::phase_velocity(&pv, beta_k, phase, v, w);
                 let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
                 let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                let e = Vel { x: &pd.q[0][r.clone()], y: &pd.q[1][r.clone()], z: &pd.q[2][r] };
+                let e = pd.q.range(r);
                 porosph_kernels::porous::add_phase_term(beta_k, pd.beta_f, e, -pd.inner_tau, v, w);
             }
             sums.drift_velocities(pd.beta, pd.beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
-            max_speed = max_speed.max(drift::max_drift_speed(phase_vel(arena, bx, by, bz, n), n));
+            max_speed =
+                max_speed.max(drift::max_drift_speed(PhaseVel::split(arena, Vel { x: bx, y: by, z: bz }, n), n));
         }
         DriftReport { max_speed, gpu_ms: 0.0 }
     }
 
     fn take_error(&mut self) -> Option<String> {
         None
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+impl Default for Box<dyn Passes> {
+    /// The CPU backend.
+    fn default() -> Self {
+        Box::new(Cpu)
     }
 }
 
@@ -231,30 +239,16 @@ impl MixtureSums<'_> {
         let (arena, n) = (self.arena, self.n);
         let [ux, uy, uz] = v;
         let [fx, fy, fz] = w;
-        let (sx, sy, sz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
-        let (mx, my, mz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
-        {
-            let w = phase_vel(arena, fx, fy, fz, n);
-            let s = VelMut { x: &mut *sx, y: &mut *sy, z: &mut *sz };
-            let m = VelMut { x: &mut *mx, y: &mut *my, z: &mut *mz };
-            drift::mixture_velocity(frac, frac_f, self.density, w, s, m);
-        }
-        let (s, m) = (Vel { x: sx, y: sy, z: sz }, Vel { x: mx, y: my, z: mz });
+        let (mut s, mut m) = (zeros3(arena, n), zeros3(arena, n));
+        let w = PhaseVel::split(arena, Vel { x: fx, y: fy, z: fz }, n);
+        drift::mixture_velocity(frac, frac_f, self.density, w, s.reborrow(), m.reborrow());
+        let (s, m) = (s.into_view(), m.into_view());
         let m = if self.conservative { Some(m) } else { None };
         let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
         let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
         for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
             drift::drift_velocity(frac[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
         }
-    }
-}
-
-/// Per-phase views of three flat arrays holding phase k at `[k n, (k + 1) n)`.
-pub fn phase_vel<'a>(arena: &'a Bump, x: &'a [f32], y: &'a [f32], z: &'a [f32], n: usize) -> PhaseVel<'a> {
-    PhaseVel {
-        x: arena.alloc_slice_fill_iter(x.chunks(n.max(1))),
-        y: arena.alloc_slice_fill_iter(y.chunks(n.max(1))),
-        z: arena.alloc_slice_fill_iter(z.chunks(n.max(1))),
     }
 }
 

@@ -11,7 +11,7 @@ pub mod gpu;
 pub mod passes;
 
 pub use cpu::Cpu;
-pub use passes::Passes;
+pub use passes::{Pass, Passes};
 
 use std::fmt;
 use std::str::FromStr;
@@ -46,10 +46,6 @@ impl fmt::Display for BackendKind {
     }
 }
 
-/// The passes the GPU backend can run, by their `stats.csv` names
-/// (`crate::pipeline::PASSES`).
-pub const GPU_PASS_NAMES: [&str; 3] = ["neighbors", "pressure_solve", "drift"];
-
 /// Which passes go to the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GpuPasses {
@@ -67,6 +63,19 @@ pub struct GpuPasses {
 impl GpuPasses {
     /// Every pass the GPU backend implements.
     pub const ALL: GpuPasses = GpuPasses { neighbors: true, pressure_solve: true, drift: true };
+
+    /// The passes the GPU backend can run, in the order of the step.
+    pub const PASSES: [Pass; 3] = [Pass::Neighbors, Pass::PressureSolve, Pass::Drift];
+
+    /// Whether pass `p` goes to the GPU.
+    pub fn contains(&self, p: Pass) -> bool {
+        match p {
+            Pass::Neighbors => self.neighbors,
+            Pass::PressureSolve => self.pressure_solve,
+            Pass::Drift => self.drift,
+            _ => false,
+        }
+    }
 }
 
 impl Default for GpuPasses {
@@ -84,15 +93,16 @@ impl FromStr for GpuPasses {
         }
         let mut set = GpuPasses { neighbors: false, pressure_solve: false, drift: false };
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-            match name {
-                "neighbors" => set.neighbors = true,
-                "pressure_solve" => set.pressure_solve = true,
-                "drift" => set.drift = true,
+            match Pass::from_name(name) {
+                Some(Pass::Neighbors) => set.neighbors = true,
+                Some(Pass::PressureSolve) => set.pressure_solve = true,
+                Some(Pass::Drift) => set.drift = true,
                 _ => {
+                    let names: Vec<&str> = Self::PASSES.iter().map(|p| p.name()).collect();
                     return Err(format!(
                         "`{name}` is not a pass the GPU backend runs: expected a comma-separated list of {} or `all`",
-                        GPU_PASS_NAMES.join(", ")
-                    ))
+                        names.join(", ")
+                    ));
                 }
             }
         }

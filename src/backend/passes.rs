@@ -8,15 +8,112 @@
 //! device and hands the others, and any pass whose device run fails, to the
 //! CPU. Every other pass of the step runs on the CPU.
 
-use super::gpu::GpuBackend;
 use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{Rows, Vel, VelMut};
+use porosph_kernels::iisph::Rows;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::phases::PhaseConstants;
+use porosph_kernels::soa::{Vel, VelMut};
 use porosph_kernels::solid_rows::SolidNeighbours;
+
+/// The timed passes of a step, in order, each with its number in
+/// PHYSICS.md §6's pipeline. [`Pass::name`] heads the pass's `ms_<pass>`
+/// column of `stats.csv` on every backend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Pass {
+    /// 0: neighbour search, with the Morton sort and reorder.
+    Neighbors,
+    /// 1: phase bookkeeping.
+    Phases,
+    /// 2 and 4a-b: densities, rest and current volumes.
+    Densities,
+    /// 3: viscosity and the predicted velocity u*.
+    Viscosity,
+    /// 4c: sources and diagonal of the pressure system.
+    PpeSetup,
+    /// 5: the IISPH relaxed Jacobi loop.
+    PressureSolve,
+    /// 6 and 8: the elastic solids (deformation, stress, conjugate
+    /// gradients; 0 ms without solids).
+    Elasticity,
+    /// 6-7 and 9: the porous coupling (absorbed volume, pore pressure,
+    /// Darcy flux, the fluid's porous terms and accelerations; 0 ms without
+    /// porous solids).
+    Porous,
+    /// 10: drift velocities (two or more phases, else 0 ms).
+    Drift,
+    /// 11: the drift momentum term a^Dm (two or more phases).
+    DriftMomentum,
+    /// 12: volume-fraction transport (two or more phases).
+    PhaseTransport,
+    /// 13: integration.
+    Integrate,
+    /// 14: the volume-fraction correction (two or more phases).
+    PhaseCorrection,
+    /// 14: the next time step (CFL).
+    TimeStep,
+}
+
+impl Pass {
+    /// Every pass, in the order of the step.
+    pub const ALL: [Pass; 14] = [
+        Pass::Neighbors,
+        Pass::Phases,
+        Pass::Densities,
+        Pass::Viscosity,
+        Pass::PpeSetup,
+        Pass::PressureSolve,
+        Pass::Elasticity,
+        Pass::Porous,
+        Pass::Drift,
+        Pass::DriftMomentum,
+        Pass::PhaseTransport,
+        Pass::Integrate,
+        Pass::PhaseCorrection,
+        Pass::TimeStep,
+    ];
+
+    /// Number of passes.
+    pub const COUNT: usize = Pass::ALL.len();
+
+    /// The pass's place in [`Pass::ALL`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The name of the pass in `stats.csv` and the benchmarks.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Pass::Neighbors => "neighbors",
+            Pass::Phases => "phases",
+            Pass::Densities => "densities",
+            Pass::Viscosity => "viscosity",
+            Pass::PpeSetup => "ppe_setup",
+            Pass::PressureSolve => "pressure_solve",
+            Pass::Elasticity => "elasticity",
+            Pass::Porous => "porous",
+            Pass::Drift => "drift",
+            Pass::DriftMomentum => "drift_momentum",
+            Pass::PhaseTransport => "phase_transport",
+            Pass::Integrate => "integrate",
+            Pass::PhaseCorrection => "phase_correction",
+            Pass::TimeStep => "time_step",
+        }
+    }
+
+    /// The pass of a name ([`Pass::name`]).
+    pub fn from_name(name: &str) -> Option<Pass> {
+        Pass::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+impl std::fmt::Display for Pass {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
+    }
+}
 
 /// The passes a backend runs for the step.
 pub trait Passes: Send {
@@ -29,7 +126,7 @@ pub trait Passes: Send {
     /// scratch). Returns the device time, ms (0 on the CPU).
     fn sort(
         &mut self,
-        fluid: Points,
+        fluid: Vel,
         inv_cell: f32,
         keys: &mut Vec<u64>,
         sort: &mut Vec<(u64, u32)>,
@@ -54,17 +151,9 @@ pub trait Passes: Send {
     /// the CPU; the run reports it as a step error).
     fn take_error(&mut self) -> Option<String>;
 
-    /// The GPU backend, if this is one.
-    fn gpu(&self) -> Option<&GpuBackend> {
-        None
-    }
-}
-
-impl Default for Box<dyn Passes> {
-    /// The CPU backend.
-    fn default() -> Self {
-        Box::new(super::cpu::Cpu)
-    }
+    /// The backend as its own type (`Simulation::gpu` finds the GPU
+    /// backend's statistics through it).
+    fn as_any(&self) -> &dyn std::any::Any;
 }
 
 /// What kind of step the backend prepares for.
@@ -84,7 +173,7 @@ pub struct StepShape {
 #[derive(Clone, Copy)]
 pub struct WallInput<'a> {
     pub grid: &'a CellGrid,
-    pub walls: Points<'a>,
+    pub walls: Vel<'a>,
     pub active: &'a [u32],
 }
 
@@ -112,7 +201,7 @@ pub struct PressureSystem<'a> {
     /// The scene's kernel (the GPU passes recompute g_ij with it).
     pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
+    pub fluid: Vel<'a>,
     pub walls: WallInput<'a>,
     /// Fluid-fluid, fluid-wall and active-wall-fluid pairs.
     pub ff: &'a PairLists,
@@ -216,7 +305,7 @@ pub struct DriftInput<'a> {
     /// The scene's kernel (the GPU passes recompute g_ij with it).
     pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
+    pub fluid: Vel<'a>,
     /// Current volume V of each particle (the volume of the harmonic pair
     /// volumes the CPU pair lists are scaled by), m^3.
     pub vol: &'a [f32],
@@ -241,7 +330,7 @@ pub struct DriftInput<'a> {
 /// pressure, -tau' q_k,f, and every volume h^3.
 pub struct PorousDriftInput<'a> {
     /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
-    pub grad_pore: [&'a [f32]; 3],
+    pub grad_pore: Vel<'a>,
     /// phi of P-Eq. 11, m^2/(Pa s).
     pub pore_drift: f32,
     /// beta_k per phase.
@@ -249,7 +338,7 @@ pub struct PorousDriftInput<'a> {
     /// beta_f = sum_k beta_k.
     pub beta_f: &'a [f32],
     /// q_k,f, phase-major, m/s.
-    pub q: [&'a [f32]; 3],
+    pub q: Vel<'a>,
     /// tau' of P-Eq. 12.
     pub inner_tau: f32,
     /// sigma' of P-Eq. 12, m^2/s.
@@ -261,25 +350,16 @@ pub struct PorousDriftInput<'a> {
 /// What the drift pass writes, phase-major (phase k at `[k n, (k + 1) n)`):
 /// the drift velocities u_mk and the phase fluxes F_k, m/s.
 pub struct DriftOutput<'a> {
-    pub ux: &'a mut [f32],
-    pub uy: &'a mut [f32],
-    pub uz: &'a mut [f32],
-    pub fx: &'a mut [f32],
-    pub fy: &'a mut [f32],
-    pub fz: &'a mut [f32],
+    /// u_mk.
+    pub u: VelMut<'a>,
+    /// F_k.
+    pub f: VelMut<'a>,
 }
 
 impl DriftOutput<'_> {
     /// The same arrays, borrowed again.
     pub fn reborrow(&mut self) -> DriftOutput<'_> {
-        DriftOutput {
-            ux: &mut *self.ux,
-            uy: &mut *self.uy,
-            uz: &mut *self.uz,
-            fx: &mut *self.fx,
-            fy: &mut *self.fy,
-            fz: &mut *self.fz,
-        }
+        DriftOutput { u: self.u.reborrow(), f: self.f.reborrow() }
     }
 }
 

@@ -8,16 +8,16 @@ impl Simulation {
     /// From the next step on, runs the passes `gpu.passes` selects on the
     /// GPU (`--backend gpu`); the other passes stay on the CPU.
     pub fn use_gpu(&mut self, gpu: GpuBackend) {
-        self.work.backend = Box::new(gpu);
+        self.backend = Box::new(gpu);
     }
 
     /// The backend the simulation runs on.
     pub fn backend(&self) -> BackendKind {
-        self.work.backend.kind()
+        self.backend.kind()
     }
 
     /// The GPU backend, if any.
     pub fn gpu(&self) -> Option<&GpuBackend> {
-        self.work.backend.gpu()
+        self.backend.as_any().downcast_ref::<GpuBackend>()
     }
 }

@@ -2,24 +2,19 @@
 //! then the correction of the volume fractions.
 
 use super::mixture::NextFractions;
-use super::timing::{pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::store::{FluidStore, SolidStore};
-use bumpalo::Bump;
-use porosph_kernels::iisph::Vel;
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::phase_transport;
+use porosph_kernels::soa::Vel;
 
 /// Pass 13: u^{n+1} = u* + dt a (a = a^p and what the later passes added),
 /// x += dt u^{n+1}; solids: x += dt v^{n+1} (PHYSICS.md §3.3).
-pub(super) fn positions(
-    fluid: &mut FluidStore,
-    solids: &mut SolidStore,
-    u_star: Vel,
-    a: Vel,
-    dt: f32,
-    tm: &mut PassTimes,
-) {
-    tm.time(pass::INTEGRATE, || {
+pub(super) fn positions(cx: &mut StepCtx, fluid: &mut FluidStore, solids: &mut SolidStore, u_star: Vel, a: Vel) {
+    let dt = cx.dt;
+    let tm = &mut cx.tm;
+    tm.time(Pass::Integrate, || {
         let s = State {
             x: &mut fluid.x,
             y: &mut fluid.y,
@@ -45,14 +40,16 @@ pub(super) fn positions(
 /// together, keeping the alpha/beta split), in f64, stored as the fluid's
 /// fractions and their low parts. Nothing with one phase and no porous
 /// solid.
-pub(super) fn correct_fractions(fluid: &mut FluidStore, next: NextFractions, arena: &Bump, tm: &mut PassTimes) {
+pub(super) fn correct_fractions(cx: &mut StepCtx, fluid: &mut FluidStore, next: NextFractions) {
+    let arena = cx.arena;
+    let tm = &mut cx.tm;
     let n = fluid.len();
     if next.alpha.is_empty() {
         return;
     }
     let np = fluid.alpha.len();
     let porous = !next.beta.is_empty();
-    tm.time(pass::PHASE_CORRECTION, || {
+    tm.time(Pass::PhaseCorrection, || {
         let sets = if porous { 2 * np } else { np };
         let all = arena.alloc_slice_fill_iter((0..sets).map(|k| {
             if k < np {

@@ -1,26 +1,27 @@
 //! Passes 10-12 of a step with two or more phases (PHYSICS.md §4; P
-//! Alg. 3's drift and transport): the drift velocities (P-Eq. 11; with
-//! porous solids its porous term and the inner drift of P-Eq. 12) on the
-//! step's backend, the drift momentum term a^Dm (PHYSICS.md §4.1, sign per
-//! §8.15), and the transport of the outer fractions over the pressure
-//! solve's pairs and of the inner ones (P-Eqs. 6-7) over the h^3 pairs, at
-//! the old positions.
+//! Alg. 3's drift and transport), one stage each: [`drift`], the drift
+//! velocities (P-Eq. 11; with porous solids its porous term and the inner
+//! drift of P-Eq. 12) on the step's backend; [`drift_momentum`], the drift
+//! momentum term a^Dm (PHYSICS.md §4.1, sign per §8.15); [`transport`], the
+//! transport of the outer fractions over the pressure solve's pairs and of
+//! the inner ones (P-Eqs. 6-7) over the h^3 pairs, at the old positions.
 
 use super::phases::PhaseState;
 use super::porous::PoreTerms;
 use super::prediction::Prediction;
-use super::timing::{pass, PassTimes};
-use super::{Params, Workspace};
-use crate::backend::cpu::phase_vel;
-use crate::backend::passes::{DriftInput, DriftOutput, DriftProblem, PorousDriftInput};
+use super::step::StepCtx;
+use super::timing::Pass;
+use super::Params;
+use crate::backend::passes::{DriftInput, DriftOutput, DriftProblem, Passes, PorousDriftInput};
 use crate::store::FluidStore;
 use bumpalo::Bump;
 use porosph_kernels::drift;
-use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
-use porosph_kernels::iisph::{Vel, VelMut};
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::drift_momentum::{self as dm, DriftMomentumInput};
+use porosph_kernels::grid::CellGrid;
+use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::phase_transport::{self, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use rayon::prelude::*;
 
 /// The fractions after the transport, phase k at `[k n, (k + 1) n)`, in
@@ -31,53 +32,60 @@ pub(super) struct NextFractions<'a> {
     pub beta: &'a mut [f64],
 }
 
-/// Passes 10-12, or with one phase and porous solids just the fractions as
-/// they are (nothing drifts; they change only by absorption); with one
-/// phase and no porous solid nothing. Adds a^Dm to `ap`, which holds a^p
-/// (+ a^pore + a^cap) on entry, the drift's a = -(a^visc + ap). Returns
-/// the next fractions, the largest drift speed max_k |u_mk| and the
-/// largest advective drift speed (`drift::max_advective_speed`, the time
-/// step's), m/s.
+/// The fluid-fluid pairs of the mixture passes.
+#[derive(Clone, Copy)]
+pub(super) struct MixturePairs<'a> {
+    /// The pressure solve's pairs (V̄_ij grad W_ij), of the outer phases.
+    pub ff: &'a PairLists,
+    /// With porous solids, the pairs with h^3 grad W_ij of the inner ones.
+    pub ffb: Option<&'a PairLists>,
+}
+
+/// What pass 10 gives passes 11 and 12.
+pub(super) struct Drift<'a> {
+    /// u_mk per phase, m/s.
+    pub u: PhaseVel<'a>,
+    /// The outer phase fluxes F_k, and with porous solids the inner ones,
+    /// m/s.
+    pub flux: PhaseVel<'a>,
+    pub inner_flux: Option<PhaseVel<'a>>,
+    /// The largest drift speed max_k |u_mk|, outer and inner, m/s.
+    pub max_speed: f32,
+    /// The largest advective drift speed (`drift::max_advective_speed`),
+    /// the time step's, m/s.
+    pub cfl_speed: f32,
+}
+
+/// Each phase's fractions as a list of slices.
+fn per_phase<'a>(arena: &'a Bump, f: &'a [Vec<f32>]) -> &'a [&'a [f32]] {
+    arena.alloc_slice_fill_iter(f.iter().map(|a| a.as_slice()))
+}
+
+/// Pass 10: the drift velocities u_mk and phase fluxes F_k (P-Eq. 11),
+/// outer and, with porous solids (`terms`), inner (P-Eq. 12), on
+/// `backend`, with a = -(a^visc + ap); `ap` holds a^p (+ a^pore + a^cap).
 #[allow(clippy::too_many_arguments)]
-pub(super) fn drift_and_transport<'a>(
-    p: &Params,
+pub(super) fn drift<'a>(
+    cx: &mut StepCtx<'a>,
     fluid: &FluidStore,
-    w: &mut Workspace,
-    ph: &PhaseState,
-    vol: &[f32],
-    pred: &Prediction,
+    grid: &CellGrid,
+    pairs: MixturePairs,
+    backend: &mut dyn Passes,
+    inp: (&PhaseState, &[f32], &Prediction),
     terms: Option<&PoreTerms>,
-    ap: [&mut [f32]; 3],
-    dt: f32,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
-) -> (NextFractions<'a>, f32, f32) {
+    ap: Vel,
+) -> Drift<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let (ph, vol, pred) = inp;
     let n = fluid.len();
     let np = fluid.alpha.len();
-    let mixture = p.mixture() && n > 0;
     let porous = terms.is_some();
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let nt = if mixture || porous { n } else { 0 };
-    let alpha_next = arena.alloc_slice_fill_copy(np * nt, 0.0f64);
-    let beta_next = arena.alloc_slice_fill_copy(if porous { np * n } else { 0 }, 0.0f64);
-    if !mixture {
-        if porous {
-            let joined = |out: &mut [f64], hi: &[f32], lo: &[f32]| {
-                out.par_iter_mut().zip(hi.par_iter().zip(lo.par_iter())).for_each(|(o, (&h, &l))| *o = join(h, l));
-            };
-            joined(alpha_next, &fluid.alpha[0], &fluid.alpha_lo[0]);
-            joined(beta_next, &fluid.beta[0], &fluid.beta_lo[0]);
-        }
-        return (NextFractions { alpha: alpha_next, beta: beta_next }, 0.0, 0.0);
-    }
-    let [apx, apy, apz] = ap;
-    let alpha: &[&[f32]] = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
-    // Pass 10: u_mk and the phase fluxes F_k, outer and (porous) inner.
-    let [ux, uy, uz, fx, fy, fz] = [(); 6].map(|_| zeros(np * n));
+    let alpha = per_phase(arena, &fluid.alpha);
+    let (mut u, mut f) = (zeros3(arena, np * n), zeros3(arena, np * n));
     let ni = if porous { np * n } else { 0 };
-    let [bx, by, bz, gx, gy, gz] = [(); 6].map(|_| zeros(ni));
+    let (mut bu, mut bf) = (zeros3(arena, ni), zeros3(arena, ni));
     let (beta, beta_f): (&[&[f32]], &[f32]) = if porous {
-        let beta = arena.alloc_slice_fill_iter(fluid.beta.iter().map(|b| b.as_slice()));
+        let beta = per_phase(arena, &fluid.beta);
         (beta, arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
     } else {
         (&[], &[])
@@ -87,22 +95,22 @@ pub(super) fn drift_and_transport<'a>(
         tau: p.phase_drift_tau[k],
         sigma: p.phase_drift_sigma[k],
     }));
-    let report = tm.time(pass::DRIFT, || {
-        let pf = zeros(if p.fraction_pressure { n } else { 0 });
+    let report = cx.tm.time(Pass::Drift, || {
+        let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
         }
         let prob = DriftProblem {
             input: DriftInput {
                 kernel: &p.kernel,
-                fluid_grid: &w.fluid_grid,
-                fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+                fluid_grid: grid,
+                fluid: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
                 vol,
                 alpha,
                 alpha_f: ph.alpha_f,
                 p_per_fraction: p.fraction_pressure.then_some(&*pf),
                 a_visc: pred.a_visc,
-                a_p: Vel { x: apx, y: apy, z: apz },
+                a_p: ap,
                 phases,
                 conservative: p.conservative_transport,
                 porous: terms.map(|t| PorousDriftInput {
@@ -116,36 +124,27 @@ pub(super) fn drift_and_transport<'a>(
                     cell_volume: p.cell_volume(),
                 }),
             },
-            ff: &w.ff,
-            ffb: porous.then_some(&w.ffb),
+            ff: pairs.ff,
+            ffb: pairs.ffb.filter(|_| porous),
         };
-        let out = DriftOutput { ux: &mut *ux, uy: &mut *uy, uz: &mut *uz, fx: &mut *fx, fy: &mut *fy, fz: &mut *fz };
-        let inner = porous.then_some(DriftOutput {
-            ux: &mut *bx,
-            uy: &mut *by,
-            uz: &mut *bz,
-            fx: &mut *gx,
-            fy: &mut *gy,
-            fz: &mut *gz,
-        });
-        w.backend.drift(&prob, out, inner, arena)
+        let out = DriftOutput { u: u.reborrow(), f: f.reborrow() };
+        let inner = porous.then_some(DriftOutput { u: bu.reborrow(), f: bf.reborrow() });
+        backend.drift(&prob, out, inner, arena)
     });
-    tm.gpu_ms[pass::DRIFT] = report.gpu_ms;
-    let u_drift = phase_vel(arena, ux, uy, uz, n);
+    cx.tm.set_gpu(Pass::Drift, report.gpu_ms);
     // The drift speed of the time step rule: the advective part (P-Eq. 11
     // without its diffusion term; with phase pressures p_k = alphahat_k p
     // all of u_mk, whose grad p_k part is a diffusion-like term too).
     let cfl_speed = if p.fraction_pressure {
         report.max_speed
     } else {
-        tm.time(pass::DRIFT, || {
-            let a_p = Vel { x: &*apx, y: &*apy, z: &*apz };
+        cx.tm.time(Pass::Drift, || {
             let outer = drift::AdvectiveDrift {
                 frac: alpha,
                 frac_f: ph.alpha_f,
                 phases,
                 a_visc: pred.a_visc,
-                a_p,
+                a_p: ap,
                 porous: terms.map(|t| (t.grad_pore, -p.pore_drift)),
             };
             let inner = terms.map(|t| drift::AdvectiveDrift {
@@ -153,42 +152,89 @@ pub(super) fn drift_and_transport<'a>(
                 frac_f: beta_f,
                 phases,
                 a_visc: pred.a_visc,
-                a_p,
+                a_p: ap,
                 porous: Some((t.q, -p.inner_drift_tau)),
             });
             drift::max_advective_speed(&outer).max(inner.map_or(0.0, |i| drift::max_advective_speed(&i)))
         })
     };
-
-    // Pass 11: a^Dm, added to a^p.
-    if p.drift_momentum_sign != 0.0 {
-        tm.time(pass::DRIFT_MOMENTUM, || {
-            let (dx, dy, dz) = (zeros(n), zeros(n), zeros(n));
-            let inp = DriftMomentumInput {
-                ff: &w.ff,
-                alpha,
-                u_drift,
-                density: &p.phase_density,
-                rest_density: ph.rest_density,
-                sign: p.drift_momentum_sign,
-            };
-            drift_momentum(&inp, VelMut { x: &mut *dx, y: &mut *dy, z: &mut *dz });
-            for (a, d) in [(&mut *apx, &*dx), (&mut *apy, &*dy), (&mut *apz, &*dz)] {
-                a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
-            }
-        });
+    Drift {
+        u: PhaseVel::split(arena, u.into_view(), n),
+        flux: PhaseVel::split(arena, f.into_view(), n),
+        inner_flux: porous.then(|| PhaseVel::split(arena, bf.into_view(), n)),
+        max_speed: report.max_speed,
+        cfl_speed,
     }
+}
 
-    // Pass 12: transport of every phase at the old positions (P-Eq. 2).
-    tm.time(pass::PHASE_TRANSPORT, || {
-        let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
-        let tr = Transport { p, arena, n, dt, u };
-        tr.run(&w.ff, alpha, &fluid.alpha_lo, phase_vel(arena, fx, fy, fz, n), alpha_next);
-        if porous {
-            tr.run(&w.ffb, beta, &fluid.beta_lo, phase_vel(arena, gx, gy, gz, n), beta_next);
+/// Pass 11: a^Dm (PHYSICS.md §4.1, sign per §8.15), added to `ap`; nothing
+/// where the scene leaves it out (`drift_momentum_sign` 0).
+pub(super) fn drift_momentum(
+    cx: &mut StepCtx,
+    fluid: &FluidStore,
+    ff: &PairLists,
+    ph: &PhaseState,
+    drift: &Drift,
+    ap: VelMut,
+) {
+    let (p, arena) = (cx.p, cx.arena);
+    if p.drift_momentum_sign == 0.0 {
+        return;
+    }
+    cx.tm.time(Pass::DriftMomentum, || {
+        let mut d = zeros3(arena, fluid.len());
+        let inp = DriftMomentumInput {
+            ff,
+            alpha: per_phase(arena, &fluid.alpha),
+            u_drift: drift.u,
+            density: &p.phase_density,
+            rest_density: ph.rest_density,
+            sign: p.drift_momentum_sign,
+        };
+        dm::drift_momentum(&inp, d.reborrow());
+        for (a, d) in [(ap.x, &*d.x), (ap.y, &*d.y), (ap.z, &*d.z)] {
+            a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
         }
     });
-    (NextFractions { alpha: alpha_next, beta: beta_next }, report.max_speed, cfl_speed)
+}
+
+/// Pass 12: the transport of every phase at the old positions (P-Eq. 2),
+/// outer over `pairs.ff` and, with porous solids, inner over `pairs.ffb`
+/// with the fluxes of `drift` (pass 10). With one phase nothing drifts:
+/// with porous solids the next fractions are the fractions as they are
+/// (they change only by absorption), without them there are none.
+pub(super) fn transport<'a>(
+    cx: &mut StepCtx<'a>,
+    fluid: &FluidStore,
+    pairs: MixturePairs,
+    drift: Option<&Drift>,
+    porous: bool,
+) -> NextFractions<'a> {
+    let (p, arena, dt) = (cx.p, cx.arena, cx.dt);
+    let n = fluid.len();
+    let np = fluid.alpha.len();
+    let nt = if drift.is_some() || porous { n } else { 0 };
+    let alpha_next = arena.alloc_slice_fill_copy(np * nt, 0.0f64);
+    let beta_next = arena.alloc_slice_fill_copy(if porous { np * n } else { 0 }, 0.0f64);
+    let Some(drift) = drift else {
+        if porous {
+            let joined = |out: &mut [f64], hi: &[f32], lo: &[f32]| {
+                out.par_iter_mut().zip(hi.par_iter().zip(lo.par_iter())).for_each(|(o, (&h, &l))| *o = join(h, l));
+            };
+            joined(alpha_next, &fluid.alpha[0], &fluid.alpha_lo[0]);
+            joined(beta_next, &fluid.beta[0], &fluid.beta_lo[0]);
+        }
+        return NextFractions { alpha: alpha_next, beta: beta_next };
+    };
+    cx.tm.time(Pass::PhaseTransport, || {
+        let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
+        let tr = Transport { p, arena, n, dt, u };
+        tr.run(pairs.ff, per_phase(arena, &fluid.alpha), &fluid.alpha_lo, drift.flux, alpha_next);
+        if let (true, Some(ffb), Some(g)) = (porous, pairs.ffb, drift.inner_flux) {
+            tr.run(ffb, per_phase(arena, &fluid.beta), &fluid.beta_lo, g, beta_next);
+        }
+    });
+    NextFractions { alpha: alpha_next, beta: beta_next }
 }
 
 /// The volume-fraction transport of pass 12 for one set of fractions.
@@ -206,11 +252,10 @@ impl Transport<'_> {
     fn run(&self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
         let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
         if self.p.conservative_transport {
-            let zeros = |len: usize| arena.alloc_slice_fill_copy(len, 0.0f32);
             let scratch = TransportScratch {
-                limit: zeros(np * n),
-                net: zeros(np * n),
-                least: zeros(n),
+                limit: zeros(arena, np * n),
+                net: zeros(arena, np * n),
+                least: zeros(arena, n),
                 next: arena.alloc_slice_fill_copy(np * n, 0.0f64),
             };
             let lo = arena.alloc_slice_fill_iter(lo.iter().map(|l| l.as_slice()));

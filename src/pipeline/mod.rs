@@ -22,8 +22,9 @@ pub use granular::{Granular, Mixed};
 pub use restore::SavedState;
 pub use solid::{Current, Peer2018, SolidModel, SolidStats};
 pub use step::{DtLimit, StepError};
-pub use timing::{PassTimes, PASSES};
+pub use timing::{Pass, PassTimes};
 
+use crate::backend::Passes;
 use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -150,18 +151,12 @@ struct Workspace {
     reorder: Scratch,
     fluid_grid: CellGrid,
     wall_grid: CellGrid,
-    /// Fluid-fluid pairs (incl. self).
-    ff: PairLists,
     /// With porous solids and several phases: the fluid-fluid pairs with
     /// h^3 grad W_ij, the full-particle volumes of the inner (beta)
     /// gradients and transport, which the pressure solve's pair volumes
     /// (0 for an inner particle) would cut off; only of the particles with
     /// inner fluid nearby (`porous::near_inner_fluid`).
     ffb: PairLists,
-    /// Fluid-wall pairs.
-    fb: PairLists,
-    /// Active-wall-fluid pairs.
-    bf: PairLists,
     /// Cells within one cell of a wall cell (static).
     wall_near: CellGrid,
     /// Wall particles with at least one fluid neighbour, ascending.
@@ -179,6 +174,29 @@ struct Workspace {
     /// Solid positions in sorted order.
     solid_sorted: [Vec<f32>; 3],
     solid_grid: CellGrid,
+    /// omega_s, each solid particle's own body's share of its pressure
+    /// row's neighbourhood, and V0_s, its rest volume in the solve (store
+    /// order; `volumes::rest_rows`).
+    solid_own: Vec<f32>,
+    solid_v0: Vec<f32>,
+    /// 0..number of solids (the identity row map of the solid rows).
+    solid_rows: Vec<u32>,
+}
+
+/// The pair lists of a step (pass 0). Their gradients are plain, grad
+/// W_ij, until pass 4c (`pressure::setup`) scales them in place by the pair
+/// volumes V̄_ij and hands them on as [`pressure::ScaledPairs`], borrowed
+/// for the rest of the step: a stage that needs plain gradients
+/// (`porous::solid_terms`, the prediction, the volumes) cannot run after
+/// it, which the compiler checks.
+#[derive(Default)]
+struct PairSet {
+    /// Fluid-fluid pairs (incl. self).
+    ff: PairLists,
+    /// Fluid-wall pairs.
+    fb: PairLists,
+    /// Active-wall-fluid pairs.
+    bf: PairLists,
     /// Fluid-solid pairs (solid targets in sorted order).
     fs: PairLists,
     /// Solid-fluid pairs (solid queries in sorted order).
@@ -189,16 +207,6 @@ struct Workspace {
     sb: PairLists,
     /// Active-wall-solid pairs (solid targets in sorted order).
     bs: PairLists,
-    /// omega_s, each solid particle's own body's share of its pressure
-    /// row's neighbourhood, and V0_s, its rest volume in the solve (store
-    /// order; `volumes::rest_rows`).
-    solid_own: Vec<f32>,
-    solid_v0: Vec<f32>,
-    /// 0..number of solids (the identity row map of the solid rows).
-    solid_rows: Vec<u32>,
-    /// Who runs the passes a backend may run (`Simulation::use_gpu`;
-    /// the CPU by default).
-    backend: Box<dyn crate::backend::Passes>,
 }
 
 /// A running simulation: state, time, and what it needs to step.
@@ -210,6 +218,10 @@ pub struct Simulation {
     pub solids: SolidStore,
     /// How the solids deform.
     pub solid_model: Box<dyn SolidModel>,
+    /// Who runs the passes a backend may run (`Simulation::use_gpu`; the
+    /// CPU by default).
+    backend: Box<dyn Passes>,
+    pairs: PairSet,
     /// Simulated time, s.
     pub time: f64,
     /// Steps taken.
@@ -228,17 +240,20 @@ impl Simulation {
     /// transport's copy of `ff`; grids and sort buffers; the step arena),
     /// capacities included.
     pub fn memory(&self) -> Vec<(&'static str, usize)> {
-        let w = &self.work;
+        let (w, pairs) = (&self.work, &self.pairs);
         vec![
             ("fluid store", self.fluid.bytes()),
             ("wall store", self.walls.bytes()),
             ("solid store", self.solids.bytes()),
             ("solid model", self.solid_model.bytes()),
-            ("pairs ff", w.ff.bytes()),
+            ("pairs ff", pairs.ff.bytes()),
             ("pairs ffb", w.ffb.bytes()),
-            ("pairs fb", w.fb.bytes()),
-            ("pairs bf", w.bf.bytes()),
-            ("pairs fs, sf, ss, sb, bs", w.fs.bytes() + w.sf.bytes() + w.ss.bytes() + w.sb.bytes() + w.bs.bytes()),
+            ("pairs fb", pairs.fb.bytes()),
+            ("pairs bf", pairs.bf.bytes()),
+            (
+                "pairs fs, sf, ss, sb, bs",
+                pairs.fs.bytes() + pairs.sf.bytes() + pairs.ss.bytes() + pairs.sb.bytes() + pairs.bs.bytes(),
+            ),
             ("solid rest rows", 4 * (w.solid_own.capacity() + w.solid_v0.capacity())),
             ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
             ("step arena", self.arena.allocated_bytes()),
@@ -274,6 +289,6 @@ impl Simulation {
 
     /// Number of fluid-fluid and fluid-wall pairs of the last step.
     pub fn pair_counts(&self) -> (usize, usize) {
-        (self.work.ff.pairs(), self.work.fb.pairs())
+        (self.pairs.ff.pairs(), self.pairs.fb.pairs())
     }
 }

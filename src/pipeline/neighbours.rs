@@ -5,69 +5,72 @@
 //! PHYSICS.md §2.4), and with solids the solids' Morton order and the pairs
 //! FS, SF, SS, solid-wall and active-wall-solid. Everything it builds lives in the [`Workspace`].
 
-use super::timing::{pass, PassTimes};
-use super::{Params, Workspace};
-use crate::backend::passes::{StepShape, WallInput};
+use super::step::StepCtx;
+use super::timing::Pass;
+use super::{PairSet, Params, Workspace};
+use crate::backend::passes::{Passes, StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
+use porosph_kernels::soa::Vel;
 
 /// Pass 0 for the fluid, walls and solids. The fluid store is reordered
 /// along the Morton curve; solids keep their store order (the pair lists
 /// see them in a sorted copy, `w.solid_perm`).
 pub(super) fn search(
-    p: &Params,
+    cx: &mut StepCtx,
     fluid: &mut FluidStore,
     walls: &WallStore,
     solids: &SolidStore,
     w: &mut Workspace,
-    arena: &Bump,
-    tm: &mut PassTimes,
+    pairs: &mut PairSet,
+    backend: &mut dyn Passes,
 ) {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
-    tm.time(pass::NEIGHBORS, || {
-        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        gpu_ms += w.backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
+    tm.time(Pass::Neighbors, || {
+        let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        gpu_ms += backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
         if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(&w.perm, &mut w.reorder);
         }
         w.keys.clear();
         w.keys.extend(w.sort.iter().map(|&(k, _)| k));
         w.fluid_grid.build(&w.keys, support);
-        let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
-        build_pairs(&mut w.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
-        build_pairs(&mut w.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+        let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
+        build_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        build_pairs(&mut pairs.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
         if !solids.is_empty() {
-            solid_pairs(p, fluid, solids, walls, w);
+            solid_pairs(p, fluid, solids, walls, w, pairs);
         }
-        active_walls(walls.len(), !solids.is_empty(), w);
+        active_walls(walls.len(), !solids.is_empty(), w, pairs);
         let ax = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
         let ay = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
         let az = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
-        let ap = Points { x: ax, y: ay, z: az };
-        build_pairs(&mut w.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
+        let ap = Vel { x: ax, y: ay, z: az };
+        build_pairs(&mut pairs.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
         if !solids.is_empty() {
             let [sx, sy, sz] = &w.solid_sorted;
-            build_pairs(&mut w.bs, ap, Points { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
+            build_pairs(&mut pairs.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
-        gpu_ms += w.backend.prepare(&w.fluid_grid, walls, shape);
+        gpu_ms += backend.prepare(&w.fluid_grid, walls, shape);
     });
-    tm.gpu_ms[pass::NEIGHBORS] = gpu_ms;
+    tm.set_gpu(Pass::Neighbors, gpu_ms);
 }
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs
 /// (and with solids of the solid-wall pairs) with a positive kernel weight.
-fn active_walls(nw: usize, solids: bool, w: &mut Workspace) {
+fn active_walls(nw: usize, solids: bool, w: &mut Workspace, pairs: &PairSet) {
     w.wall_flag.resize(nw, 0);
     for &b in &w.active {
         w.wall_flag[b as usize] = 0;
     }
-    let sb = if solids { w.sb.used() } else { &[] };
-    for blk in w.fb.used().iter().chain(sb) {
+    let sb = if solids { pairs.sb.used() } else { &[] };
+    for blk in pairs.fb.used().iter().chain(sb) {
         for (&b, &wt) in blk.j.iter().zip(&blk.w) {
             if wt > 0.0 {
                 w.wall_flag[b as usize] = 1;
@@ -81,7 +84,14 @@ fn active_walls(nw: usize, solids: bool, w: &mut Workspace) {
 /// Pass 0 for solids: Morton order of the solid positions (a sorted copy;
 /// the store keeps its order), the solid grid, and the fluid-solid,
 /// solid-fluid, solid-solid and solid-wall pairs (solids in the sorted order).
-fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &WallStore, w: &mut Workspace) {
+fn solid_pairs(
+    p: &Params,
+    fluid: &FluidStore,
+    solids: &SolidStore,
+    walls: &WallStore,
+    w: &mut Workspace,
+    pairs: &mut PairSet,
+) {
     let ns = solids.len();
     let support = p.kernel.support;
     w.solid_keys.resize(ns, 0);
@@ -99,11 +109,11 @@ fn solid_pairs(p: &Params, fluid: &FluidStore, solids: &SolidStore, walls: &Wall
         w.solid_rows.extend(0..ns as u32);
     }
     let [sx, sy, sz] = &w.solid_sorted;
-    let sp = Points { x: sx, y: sy, z: sz };
-    let fp = Points { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-    build_pairs(&mut w.fs, fp, sp, &w.solid_grid, None, &p.kernel);
-    build_pairs(&mut w.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
-    build_pairs(&mut w.ss, sp, sp, &w.solid_grid, None, &p.kernel);
-    let wp = Points { x: &walls.x, y: &walls.y, z: &walls.z };
-    build_pairs(&mut w.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
+    let sp = Vel { x: sx, y: sy, z: sz };
+    let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+    build_pairs(&mut pairs.fs, fp, sp, &w.solid_grid, None, &p.kernel);
+    build_pairs(&mut pairs.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
+    build_pairs(&mut pairs.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
+    build_pairs(&mut pairs.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
 }

@@ -2,10 +2,9 @@
 //! rest density, viscosity, outer fraction, mass and pressure-solve rest
 //! volume from its fractions (P-Eq. 10, P §6.1).
 
-use super::timing::{pass, PassTimes};
-use super::Params;
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::store::FluidStore;
-use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph;
 use rayon::prelude::*;
@@ -27,20 +26,16 @@ pub(super) struct PhaseState<'a> {
 
 /// Pass 1. With porous solids the inner fractions count in the mass and
 /// the viscosity (P-Eq. 10).
-pub(super) fn bookkeeping<'a>(
-    p: &Params,
-    fluid: &FluidStore,
-    porous: bool,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
-) -> PhaseState<'a> {
+pub(super) fn bookkeeping<'a>(cx: &mut StepCtx<'a>, fluid: &FluidStore, porous: bool) -> PhaseState<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     let n = fluid.len();
     let rest_density = arena.alloc_slice_fill_copy(n, 0.0f32);
     let mu = arena.alloc_slice_fill_copy(n, 0.0f32);
     let alpha_f = arena.alloc_slice_fill_copy(n, 0.0f32);
     let mass = arena.alloc_slice_fill_copy(n, 0.0f32);
     let v0 = arena.alloc_slice_fill_copy(n, 0.0f32);
-    tm.time(pass::PHASES, || {
+    tm.time(Pass::Phases, || {
         let cell = p.cell_volume();
         rest_density
             .par_chunks_mut(BLOCK)

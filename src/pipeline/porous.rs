@@ -7,7 +7,8 @@
 //! 1. [`partition`], right after the neighbour search: N_f (P-Eq. 15) and
 //!    P Alg. 4's fallback (beta back to alpha where N_f = 0).
 //! 2. [`pore_state`], before the pressure solve scales the fluid-solid pair
-//!    gradients: phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
+//!    gradients (it reads the plain `PairSet`, which `pressure::setup`
+//!    borrows for the rest of the step once it scales it): phi_sk, the wet mass (optional), p^pore (P-Eq. 9),
 //!    grad p^pore, q_k and u_betak on the solids (P-Eqs. 1, 19), and on the
 //!    fluid u_betak,f, q_k,f, grad p^pore_fk, Gamma_k and the surface
 //!    capillary normal (P-Eqs. 16-18, 20-22).
@@ -18,22 +19,20 @@
 //! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
 //! the strain it sees lags by one step (0 at the start: strain-free).
 
-use super::timing::{pass, PassTimes};
-use super::{Params, Workspace};
+use super::step::StepCtx;
+use super::timing::Pass;
+use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
-use porosph_kernels::iisph::{self, Vel, VelMut};
+use porosph_kernels::iisph::{self};
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::porous::{
     absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
     FluidPhaseOut, Fractions, SolidPhase,
 };
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use rayon::prelude::*;
-
-fn zeros(arena: &Bump, n: usize) -> &mut [f32] {
-    arena.alloc_slice_fill_copy(n, 0.0f32)
-}
 
 /// N_f per fluid particle and the porous mask of the solids (1 for a
 /// particle of a porous solid), in the sorted order of the solid pair lists.
@@ -51,20 +50,21 @@ pub(super) struct Partition<'a> {
 /// to alpha_k; and the fill of each phase's absorbing solids around each
 /// fluid particle, for [`settle`] at the end of the step.
 pub(super) fn partition<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     solids: &SolidStore,
     walls: &WallStore,
     w: &Workspace,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
+    pairs: &PairSet,
 ) -> Partition<'a> {
-    tm.time(pass::POROUS, || {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
+    tm.time(Pass::Porous, || {
         let mask = arena.alloc_slice_fill_iter(
             w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
         );
         let n_f = zeros(arena, fluid.len());
-        iisph::kernel_sums(&w.fs, mask, n_f);
+        iisph::kernel_sums(&pairs.fs, mask, n_f);
         for (alpha, beta) in outer_inner(fluid) {
             release_outside(n_f, alpha, beta);
         }
@@ -83,7 +83,7 @@ pub(super) fn partition<'a>(
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
                 r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume
             }));
-            iisph::kernel_sums(&w.fs, absorbs, fill);
+            iisph::kernel_sums(&pairs.fs, absorbs, fill);
         }
         // Walls fill the neighbourhood as well as the solid does: a partly
         // absorbed particle inside a soaking block next to the tank's floor
@@ -91,7 +91,7 @@ pub(super) fn partition<'a>(
         // compressed by both, and its pressure rose tenfold per step to
         // 2.7e9 Pa.
         let walls_fill = zeros(arena, n);
-        iisph::kernel_sums(&w.fb, &walls.rest_volume, walls_fill);
+        iisph::kernel_sums(&pairs.fb, &walls.rest_volume, walls_fill);
         for fill in fill.chunks_mut(n.max(1)) {
             for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
                 if *f > 0.0 {
@@ -108,9 +108,10 @@ pub(super) fn partition<'a>(
 /// alpha_k moves into beta_k (`porosph_kernels::porous::take_inside`).
 /// Applied after the step's exchange, so that the solids' wet mass of the
 /// next step sees the inner volume the step ends with.
-pub(super) fn settle(fluid: &mut FluidStore, part: &Partition, tm: &mut PassTimes) {
+pub(super) fn settle(cx: &mut StepCtx, fluid: &mut FluidStore, part: &Partition) {
+    let tm = &mut cx.tm;
     let n = fluid.len();
-    tm.time(pass::POROUS, || {
+    tm.time(Pass::Porous, || {
         for (k, (alpha, beta)) in outer_inner(fluid).enumerate() {
             take_inside(&part.fill[k * n..(k + 1) * n], alpha, beta);
         }
@@ -129,23 +130,23 @@ fn outer_inner(fluid: &mut FluidStore) -> impl Iterator<Item = (Fractions<'_>, F
 /// with several phases also the fluid pairs of the inner transport
 /// (`w.ffb`: h^3 grad W, the full-particle volumes that the pressure
 /// solve's pair volumes, 0 for an inner particle, would cut off).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn solid_terms<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &mut Workspace,
+    pairs: &PairSet,
     part: &Partition,
     mixture: bool,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> PoreTerms<'a> {
-    tm.time(pass::POROUS, || {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
+    tm.time(Pass::Porous, || {
         if mixture {
-            let active = near_inner_fluid(fluid, &w.ff, arena);
-            w.ffb.copy_scaled_where(&w.ff, p.cell_volume(), active);
+            let active = near_inner_fluid(fluid, &pairs.ff, arena);
+            w.ffb.copy_scaled_where(&pairs.ff, p.cell_volume(), active);
         }
-        pore_state(p, fluid, solids, w, arena, part.n_f, part.mask)
+        pore_state(p, fluid, solids, w, pairs, arena, part)
     })
 }
 
@@ -172,15 +173,10 @@ fn near_inner_fluid<'a>(fluid: &FluidStore, ff: &PairLists, arena: &'a Bump) -> 
 /// The absorption exchange of pass 12 (P-Eqs. 6-7, 22) within each
 /// particle, after the transport: alpha_k -= dt Gamma_k, beta_k += dt
 /// Gamma_k on the next fractions (phase k at `[k n, (k + 1) n)`).
-pub(super) fn exchange(
-    terms: &PoreTerms,
-    n: usize,
-    alpha_next: &mut [f64],
-    beta_next: &mut [f64],
-    dt: f32,
-    tm: &mut PassTimes,
-) {
-    tm.time(pass::PHASE_TRANSPORT, || {
+pub(super) fn exchange(cx: &mut StepCtx, terms: &PoreTerms, n: usize, alpha_next: &mut [f64], beta_next: &mut [f64]) {
+    let dt = cx.dt;
+    let tm = &mut cx.tm;
+    tm.time(Pass::PhaseTransport, || {
         for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
             porosph_kernels::porous::exchange(&terms.gamma[k * n..(k + 1) * n], dt, a, b);
         }
@@ -195,9 +191,9 @@ pub(super) struct PoreTerms<'a> {
     /// u_betak,f (P-Eq. 16), m/s.
     pub u_beta: [&'a [f32]; 3],
     /// q_k,f (P-Eq. 17), m/s.
-    pub q: [&'a [f32]; 3],
+    pub q: Vel<'a>,
     /// grad p^pore_fk (P-Eq. 20), Pa/m.
-    pub grad_pore: [&'a [f32]; 3],
+    pub grad_pore: Vel<'a>,
     /// Gamma_k (P-Eq. 22), 1/s.
     pub gamma: &'a [f32],
     /// eta p^pore per solid particle (store order), Pa, for the stress
@@ -208,16 +204,17 @@ pub(super) struct PoreTerms<'a> {
 }
 
 /// Passes 6, 7 and 9 (module doc). `n_f` and `mask` come from
-/// [`partition`]; `w.fs` must still hold plain kernel gradients.
+/// [`partition`]; `pairs.fs` must still hold plain kernel gradients.
 fn pore_state<'a>(
     p: &Params,
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &Workspace,
+    pairs: &PairSet,
     arena: &'a Bump,
-    n_f: &[f32],
-    mask: &[f32],
+    part: &Partition,
 ) -> PoreTerms<'a> {
+    let (n_f, mask) = (part.n_f, part.mask);
     let (n, ns, np) = (fluid.len(), solids.len(), fluid.alpha.len());
     let perm = &w.solid_perm;
     let cell = p.cell_volume();
@@ -231,7 +228,7 @@ fn pore_state<'a>(
         beta_over_n.par_iter_mut().zip(fluid.beta[k].par_iter()).zip(inv_n.par_iter()).for_each(|((o, b), i)| {
             *o = b * i;
         });
-        absorbed_volume(&w.sf, beta_over_n, mask, out);
+        absorbed_volume(&pairs.sf, beta_over_n, mask, out);
     }
     let phi: &[&[f32]] = arena.alloc_slice_fill_iter(phi.chunks(ns.max(1)).take(np));
 
@@ -251,7 +248,7 @@ fn pore_state<'a>(
     {
         let mass_s = arena.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
         let rho_s = zeros(arena, ns);
-        iisph::kernel_sums(&w.ss, mass_s, rho_s);
+        iisph::kernel_sums(&pairs.ss, mass_s, rho_s);
         for k in 0..ns {
             let i = perm[k] as usize;
             let sat: f32 = (0..np).map(|ph| phi[ph][k]).sum();
@@ -266,12 +263,12 @@ fn pore_state<'a>(
 
     // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
     // u_rk = q_k / e, u_betak = u_rk + v_s.
-    let (gx, gy, gz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
-    pore_gradient(&w.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
+    let VelMut { x: gx, y: gy, z: gz } = zeros3(arena, ns);
+    pore_gradient(&pairs.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
-        let (qx, qy, qz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
-        let (ux, uy, uz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+        let VelMut { x: qx, y: qy, z: qz } = zeros3(arena, ns);
+        let VelMut { x: ux, y: uy, z: uz } = zeros3(arena, ns);
         let p0k = zeros(arena, ns);
         let cond = zeros(arena, ns);
         for s in 0..ns {
@@ -295,9 +292,9 @@ fn pore_state<'a>(
     let per_solid = arena.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
 
     // Pass 9 on the fluid.
-    let (cx, cy, cz) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+    let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, n);
     let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
-    capillary_normal(&w.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
+    capillary_normal(&pairs.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
     let [ubx, uby, ubz] = flat(arena);
     let [qfx, qfy, qfz] = flat(arena);
@@ -321,7 +318,7 @@ fn pore_state<'a>(
             grad_pore: VelMut { x: &mut gpx[r.clone()], y: &mut gpy[r.clone()], z: &mut gpz[r.clone()] },
             gamma: &mut gamma[r],
         };
-        fluid_phase_terms(&w.fs, solid, fl, out);
+        fluid_phase_terms(&pairs.fs, solid, fl, out);
     }
 
     let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);
@@ -335,8 +332,8 @@ fn pore_state<'a>(
     PoreTerms {
         capillary: [cx, cy, cz],
         u_beta: [ubx, uby, ubz],
-        q: [qfx, qfy, qfz],
-        grad_pore: [gpx, gpy, gpz],
+        q: Vel { x: qfx, y: qfy, z: qfz },
+        grad_pore: Vel { x: gpx, y: gpy, z: gpz },
         gamma,
         pore_stress,
         max_darcy_speed: max_darcy,

@@ -5,13 +5,12 @@
 //! step's start) or implicit (of u*, a linear solve: `Params::implicit_viscosity`).
 
 use super::phases::PhaseState;
-use super::timing::{pass, PassTimes};
-use super::Params;
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::store::FluidStore;
-use bumpalo::Bump;
 use porosph_kernels::blocks::nblocks;
-use porosph_kernels::iisph::{Vel, VelMut};
-use porosph_kernels::neighbors::{PairLists, Points};
+use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::viscosity::{
     predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
 };
@@ -28,28 +27,25 @@ pub(super) struct Prediction<'a> {
 }
 
 /// Pass 3 over the fluid pairs `ff` (plain kernel gradients).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn predict<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &FluidStore,
     ff: &PairLists,
     visc_coef: &mut Vec<Vec<f32>>,
     ph: &PhaseState,
-    dt: f32,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> Prediction<'a> {
+    let (p, dt, arena) = (cx.p, cx.dt, cx.arena);
+    let tm = &mut cx.tm;
     let n = fluid.len();
     let mixture = p.mixture() && n > 0;
     let nm = if mixture { n } else { 0 };
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (usx, usy, usz) = (zeros(n), zeros(n), zeros(n));
-    let (avx, avy, avz) = (zeros(nm), zeros(nm), zeros(nm));
+    let VelMut { x: usx, y: usy, z: usz } = zeros3(arena, n);
+    let VelMut { x: avx, y: avy, z: avz } = zeros3(arena, nm);
     let mut iterations = 0;
-    tm.time(pass::VISCOSITY, || {
+    tm.time(Pass::Viscosity, || {
         let inp = ViscosityInput {
             ff,
-            x: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+            x: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
             u: Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz },
             rest_density: ph.rest_density,
             mu: ph.mu,
@@ -59,9 +55,9 @@ pub(super) fn predict<'a>(
         };
         if p.implicit_viscosity && n > 0 {
             let alpha = mixture.then(|| &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice())));
-            let z3 = || [zeros(n), zeros(n), zeros(n)];
+            let z3 = || [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
             let scratch = ImplicitScratch {
-                diag: zeros(n),
+                diag: zeros(arena, n),
                 r: z3(),
                 z: z3(),
                 p: z3(),

@@ -11,16 +11,18 @@
 use super::phases::PhaseState;
 use super::prediction::Prediction;
 use super::solid::{BodyResponse, SolidModel, SolidStats};
-use super::timing::{pass, PassTimes};
+use super::step::StepCtx;
+use super::timing::Pass;
 use super::volumes::Volumes;
-use super::{Params, StepStats, Workspace};
-use crate::backend::passes::{PressureSystem, SolidSystem, SolidUnknowns, SolveSettings, Unknowns, WallInput};
+use super::{PairSet, Workspace};
+use crate::backend::passes::{
+    Passes, PressureSystem, SolidSystem, SolidUnknowns, SolveReport, SolveSettings, Unknowns, WallInput,
+};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64};
-use porosph_kernels::iisph::{self, FluidRows, Rows, Vel, VelMut, WallRows};
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
+use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
 use rayon::prelude::*;
 
@@ -35,33 +37,47 @@ pub(super) struct PressureRows<'a> {
     /// Pressures of the active walls and of the solids, warm-started, Pa.
     pub p_active: &'a mut [f32],
     pub p_solid: &'a mut [f32],
+    /// The pair lists, scaled.
+    pub pairs: ScaledPairs<'a>,
 }
 
-/// Pass 4c. Scales the pair lists of `w` by the pair volumes. The solids'
+/// The step's pair lists after pass 4c: every gradient is V̄_ij grad W_ij
+/// (`iisph::fluid_setup`, `iisph::wall_setup`, `solid_rows::solid_setup`,
+/// `solid_rows::wall_solid_setup`). Only [`setup`] makes one, from the
+/// plain lists it scales, which stay borrowed while the step runs.
+#[derive(Clone, Copy)]
+pub(super) struct ScaledPairs<'a>(&'a PairSet);
+
+impl<'a> ScaledPairs<'a> {
+    /// The lists (their gradients scaled).
+    pub fn lists(self) -> &'a PairSet {
+        self.0
+    }
+}
+
+/// Pass 4c. Scales the pair lists by the pair volumes, in place, and hands
+/// them on as [`ScaledPairs`], borrowed for the rest of the step. The solids'
 /// u*_s are their predicted velocities ([`SolidModel::predict`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn setup<'a>(
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
-    solids: &SolidStore,
-    model: &dyn SolidModel,
-    w: &mut Workspace,
-    ph: &PhaseState,
-    vols: &Volumes,
-    pred: &Prediction,
-    dt: f32,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
+    (solids, model): (&SolidStore, &dyn SolidModel),
+    w: &Workspace,
+    pairs: &'a mut PairSet,
+    (ph, vols, pred): (&PhaseState, &Volumes, &Prediction),
 ) -> PressureRows<'a> {
+    let (dt, arena) = (cx.dt, cx.arena);
+    let tm = &mut cx.tm;
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (src, diag) = (zeros(n), zeros(n));
-    let (src_b, diag_b, p_b) = (zeros(na), zeros(na), zeros(na));
-    let (usx, usy, usz) = (zeros(ns), zeros(ns), zeros(ns));
-    let mobility = zeros(ns);
+    let (src, diag) = (zeros(arena, n), zeros(arena, n));
+    let (src_b, diag_b, p_b) = (zeros(arena, na), zeros(arena, na), zeros(arena, na));
+    let VelMut { x: usx, y: usy, z: usz } = zeros3(arena, ns);
+    let mobility = zeros(arena, ns);
     if ns > 0 {
         let v = model.predicted();
-        let c = zeros(ns);
+        let c = zeros(arena, ns);
         model.mobility(solids, c);
         for (k, &i) in w.solid_perm.iter().enumerate() {
             let i = i as usize;
@@ -70,9 +86,9 @@ pub(super) fn setup<'a>(
         }
     }
     let u_solid = Vel { x: usx, y: usy, z: usz };
-    let (src_s, diag_s) = (zeros(ns), zeros(ns));
+    let (src_s, diag_s) = (zeros(arena, ns), zeros(arena, ns));
     let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
-    tm.time(pass::PPE_SETUP, || {
+    tm.time(Pass::PpeSetup, || {
         let rows = FluidRows {
             u_star: pred.u_star,
             vol: vols.vol,
@@ -84,8 +100,8 @@ pub(super) fn setup<'a>(
             u_solid,
             mobility_solid: mobility,
         };
-        let fs = if ns > 0 { Some(&mut w.fs) } else { None };
-        iisph::fluid_setup(&mut w.ff, &mut w.fb, fs, rows, dt, src, diag);
+        let fs = if ns > 0 { Some(&mut pairs.fs) } else { None };
+        iisph::fluid_setup(&mut pairs.ff, &mut pairs.fb, fs, rows, dt, src, diag);
         let rows = WallRows {
             vol: vols.vol_wall,
             sigma: vols.sigma_wall,
@@ -93,7 +109,7 @@ pub(super) fn setup<'a>(
             vm_fluid: vols.vm,
             vol_fluid: vols.vol,
         };
-        iisph::wall_setup(&mut w.bf, rows, dt, src_b, diag_b);
+        iisph::wall_setup(&mut pairs.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
             let vol_free =
                 arena.alloc_slice_fill_iter(vols.vol_solid.iter().zip(vols.no_walls_solid).map(|(&v, &f)| {
@@ -103,7 +119,7 @@ pub(super) fn setup<'a>(
                         v
                     }
                 }));
-            solid_rows::wall_solid_setup(&mut w.bs, vols.vol_wall, vol_free, u_solid, mobility, dt, src_b, diag_b);
+            solid_rows::wall_solid_setup(&mut pairs.bs, vols.vol_wall, vol_free, u_solid, mobility, dt, src_b, diag_b);
             let rows = SolidRows {
                 vol: vols.vol_solid,
                 sigma: vols.sigma_solid,
@@ -115,9 +131,9 @@ pub(super) fn setup<'a>(
                 vol_wall: vols.vol_wall_full,
             };
             let nb = SolidNeighboursMut {
-                sf: &mut w.sf,
-                sb: &mut w.sb,
-                ss: &mut w.ss,
+                sf: &mut pairs.sf,
+                sb: &mut pairs.sb,
+                ss: &mut pairs.ss,
                 body: vols.body_solid,
                 fixed: vols.fixed_solid,
                 no_walls: vols.no_walls_solid,
@@ -140,71 +156,76 @@ pub(super) fn setup<'a>(
         solids: Rows { source: src_s, diag: diag_s },
         p_active: p_b,
         p_solid: p_s,
+        pairs: ScaledPairs(pairs),
     }
 }
 
 /// What pass 5 gives the later passes.
 pub(super) struct Solved<'a> {
     /// a^p of the fluid, m/s^2 (the later passes add to it).
-    pub ap: [&'a mut [f32]; 3],
+    pub ap: VelMut<'a>,
     /// Solid pressures (sorted solid order), Pa.
     pub p_solid: &'a [f32],
     /// a^p_s of the solids, the bodies' response to the final pressures
     /// (store order), m/s^2.
     pub accel_solid: &'a [Vec3],
+    /// How the solve went, and the bodies' compliance solves within it.
+    pub report: SolveReport,
+    pub solid_stats: SolidStats,
+    /// The pair lists, scaled (for the later passes).
+    pub pairs: ScaledPairs<'a>,
 }
 
 /// Pass 5 on the step's backend: the pressures of every row and the final
 /// accelerations, until the mean predicted density error is at most eta.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
-    solids: &SolidStore,
-    model: &mut dyn SolidModel,
-    w: &mut Workspace,
+    (solids, model): (&SolidStore, &mut dyn SolidModel),
+    w: &Workspace,
+    backend: &mut dyn Passes,
     vols: &Volumes,
     rows: PressureRows<'a>,
-    dt: f32,
-    arena: &'a Bump,
-    st: &mut StepStats,
 ) -> Solved<'a> {
+    let (p, dt, arena) = (cx.p, cx.dt, cx.arena);
     let (n, ns) = (fluid.len(), solids.len());
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (apx, apy, apz) = (zeros(n), zeros(n), zeros(n));
-    let (asx, asy, asz) = (zeros(ns), zeros(ns), zeros(ns));
+    let VelMut { x: apx, y: apy, z: apz } = zeros3(arena, n);
+    let VelMut { x: asx, y: asy, z: asz } = zeros3(arena, ns);
     let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (rows.fluid.diag[i] != 0.0) as u32 as f64).max(1.0);
-    let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid } = rows;
+    let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid, pairs: scaled } =
+        rows;
+    let pairs = scaled.lists();
     let sys = PressureSystem {
         kernel: &p.kernel,
         fluid_grid: &w.fluid_grid,
-        fluid: Points { x: &fluid.x, y: &fluid.y, z: &fluid.z },
+        fluid: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
         walls: WallInput {
             grid: &w.wall_grid,
-            walls: Points { x: &walls.x, y: &walls.y, z: &walls.z },
+            walls: Vel { x: &walls.x, y: &walls.y, z: &walls.z },
             active: &w.active,
         },
-        ff: &w.ff,
-        fb: &w.fb,
-        bf: &w.bf,
+        ff: &pairs.ff,
+        fb: &pairs.fb,
+        bf: &pairs.bf,
         vol: vols.vol,
         vm: vols.vm,
         rows: fluid_rows,
         vol_wall: vols.vol_wall_full,
         wall_rows,
         solids: (ns > 0).then_some(SolidSystem {
-            fs: &w.fs,
+            fs: &pairs.fs,
             solid: SolidNeighbours {
-                sf: &w.sf,
-                sb: &w.sb,
-                ss: &w.ss,
+                sf: &pairs.sf,
+                sb: &pairs.sb,
+                ss: &pairs.ss,
                 body: vols.body_solid,
                 fixed: vols.fixed_solid,
                 no_walls: vols.no_walls_solid,
             },
-            bs: &w.bs,
+            bs: &pairs.bs,
             vol: vols.vol_solid,
             rows: solid_rows,
         }),
@@ -240,13 +261,8 @@ pub(super) fn solve<'a>(
             response: &mut response,
         }),
     };
-    let report = st.times.time(pass::PRESSURE_SOLVE, || w.backend.pressure_solve(&sys, x, arena));
-    st.iterations = report.iterations;
-    st.density_error = report.density_error;
-    st.solid_density_error = report.solid_error;
-    st.solve_restarts = report.restarts;
-    st.times.gpu_ms[pass::PRESSURE_SOLVE] = report.gpu_ms.unwrap_or(0.0);
-    st.cg_iterations += response.stats.iterations;
-    st.cg_residual = st.cg_residual.max(response.stats.residual);
-    Solved { ap: [apx, apy, apz], p_solid, accel_solid }
+    let report = cx.tm.time(Pass::PressureSolve, || backend.pressure_solve(&sys, x, arena));
+    cx.tm.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
+    let solid_stats = response.stats;
+    Solved { ap: VelMut { x: apx, y: apy, z: apz }, p_solid, accel_solid, report, solid_stats, pairs: scaled }
 }

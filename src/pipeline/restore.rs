@@ -5,7 +5,8 @@
 //! steps bit for bit like the one that was saved.
 
 use super::setup::wall_workspace;
-use super::{Params, Simulation, StepStats};
+use super::{PairSet, Params, Simulation, StepStats};
+use crate::backend::Passes;
 use crate::scene::Scene;
 use crate::store::{Column, FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -61,6 +62,8 @@ impl Simulation {
             walls,
             solids,
             solid_model,
+            backend: Box::<dyn Passes>::default(),
+            pairs: PairSet::default(),
             time,
             step,
             dt,

@@ -4,7 +4,8 @@
 use super::granular::{Granular, Mixed};
 use super::solid::{Peer2018, SolidModel};
 use super::step::explicit_viscosity_bound;
-use super::{Params, Simulation, StepStats, Workspace};
+use super::{PairSet, Params, Simulation, StepStats, Workspace};
+use crate::backend::Passes;
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
     SolidMaterial, ViscositySolver,
@@ -14,7 +15,8 @@ use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::elasticity::Lame;
 use porosph_kernels::kernel::{Kernel, KernelShape};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists, Points};
+use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
+use porosph_kernels::soa::Vel;
 
 impl Params {
     /// Parameters of a scene (PHYSICS.md §1: H = 2h, h = particle spacing).
@@ -270,7 +272,7 @@ impl Simulation {
         let mut work = wall_workspace(&mut walls, &params);
         (work.solid_own, work.solid_v0) = super::volumes::rest_rows(&params, &solids);
         let mut bb = PairLists::default();
-        let pts = Points { x: &walls.x, y: &walls.y, z: &walls.z };
+        let pts = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
         build_pairs(&mut bb, pts, pts, &work.wall_grid, None, &params.kernel);
         // Rest volume of a wall particle (PHYSICS.md §2.3, Akinci-style):
         // V0_b = gamma / sum_{b'} W_bb' over the wall (incl. self), with gamma
@@ -279,7 +281,7 @@ impl Simulation {
         // missing fluid lattice), less in corners, more at convex edges; and
         // sum_b' V0_b' W_bb' ~ gamma < 1 everywhere, so a wall row only
         // resists compression by fluid, never by its own sampling.
-        let gamma = flat_wall_gamma(&params.kernel, params.h);
+        let gamma = params.kernel.flat_wall_gamma(params.h);
         let mut sum_w = vec![0.0f32; nw];
         for (b, blk) in bb.used().iter().enumerate() {
             for q in 0..blk.start.len().saturating_sub(1) {
@@ -307,6 +309,8 @@ impl Simulation {
             walls,
             solids,
             solid_model,
+            backend: Box::<dyn Passes>::default(),
+            pairs: PairSet::default(),
             time: 0.0,
             step: 0,
             dt: 0.0,
@@ -337,20 +341,4 @@ pub(super) fn wall_workspace(walls: &mut WallStore, params: &Params) -> Workspac
     let near = work.wall_grid.dilated_keys();
     work.wall_near.build(&near, params.kernel.support);
     work
-}
-
-/// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of two
-/// lattice layers (its own layer and the one behind it), spacing d = `h`.
-/// About 0.725 for the cubic spline with H = 2d.
-pub fn flat_wall_gamma(kernel: &Kernel, h: f32) -> f32 {
-    let mut s = 0.0f64;
-    for c in [0i32, -1] {
-        for a in -3i32..=3 {
-            for b in -3i32..=3 {
-                let r = h * ((a * a + b * b + c * c) as f32).sqrt();
-                s += kernel.w(r) as f64;
-            }
-        }
-    }
-    (s * (h as f64).powi(3)) as f32
 }

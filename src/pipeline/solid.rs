@@ -7,8 +7,8 @@
 //! corotated SPH elasticity of Peer et al. 2018; the granular continuum of
 //! the paper's Example 7 runs next to it (`granular.rs`, [`super::granular::Mixed`]).
 
-use super::timing::{pass, PassTimes};
-use super::Params;
+use super::step::StepCtx;
+use super::timing::Pass;
 use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
@@ -16,9 +16,9 @@ use porosph_kernels::elasticity::{
     conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
 use porosph_kernels::granular::Walls;
-use porosph_kernels::iisph::{Vel, VelMut};
 use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
 /// What a solid model did in one step.
@@ -337,37 +337,39 @@ impl Compliance for BodyResponse<'_> {
 }
 
 /// Alg. 2's first line: the solids' strain at the current positions.
-pub(super) fn strain(solids: &mut SolidStore, model: &mut dyn SolidModel, tm: &mut PassTimes) {
-    tm.time(pass::ELASTICITY, || model.deform(solids));
+pub(super) fn strain(cx: &mut StepCtx, solids: &mut SolidStore, model: &mut dyn SolidModel) {
+    let tm = &mut cx.tm;
+    tm.time(Pass::Elasticity, || model.deform(solids));
 }
 
 /// Alg. 2's last line: stress, elastic forces and the predicted velocities
 /// under gravity (P-Eq. 5 with the pore stress `pore`).
 pub(super) fn predict(
-    p: &Params,
+    cx: &mut StepCtx,
     solids: &mut SolidStore,
     model: &mut dyn SolidModel,
     pore: Option<&[f32]>,
     near: &Current,
-    dt: f32,
-    tm: &mut PassTimes,
 ) -> SolidStats {
-    tm.time(pass::ELASTICITY, || model.predict(solids, Vec3::from(p.gravity), pore, dt, near))
+    let (p, dt) = (cx.p, cx.dt);
+    let tm = &mut cx.tm;
+    tm.time(Pass::Elasticity, || model.predict(solids, Vec3::from(p.gravity), pore, dt, near))
 }
 
 /// Alg. 4's first line: v^{n+1} = v^pred + dt a^p_s for the free particles
 /// (`accel` in store order; fixed ones keep their prescribed velocity), and
 /// the pressures of the solve (`p_solid` in the sorted order `perm`).
 pub(super) fn finish(
+    cx: &mut StepCtx,
     solids: &mut SolidStore,
     model: &dyn SolidModel,
     accel: &[Vec3],
     p_solid: &[f32],
     perm: &[u32],
-    dt: f32,
-    tm: &mut PassTimes,
 ) {
-    tm.time(pass::ELASTICITY, || {
+    let dt = cx.dt;
+    let tm = &mut cx.tm;
+    tm.time(Pass::Elasticity, || {
         for (k, &i) in perm.iter().enumerate() {
             solids.pressure[i as usize] = p_solid[k];
         }

@@ -4,15 +4,16 @@
 //! take no time, nor without solids the solid passes, nor without porous
 //! solids the porous ones.
 
+use super::mixture::MixturePairs;
 use super::solid::SolidModel;
-use super::timing::pass;
+use super::timing::{Pass, PassTimes};
 use super::{integrate, mixture, neighbours, phases, porous, prediction, pressure, solid, volumes};
-use super::{Params, Simulation, StepStats, Workspace};
+use super::{PairSet, Params, Simulation, StepStats, Workspace};
+use crate::backend::Passes;
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::max_f32;
 use porosph_kernels::granular::Walls;
-use porosph_kernels::iisph::Vel;
 use std::fmt;
 
 /// A step that cannot go on: a NaN or an exploding velocity.
@@ -50,11 +51,12 @@ impl Simulation {
                 (self.solids.vx[i], self.solids.vy[i], self.solids.vz[i]) = (v[0], v[1], v[2]);
             }
         }
-        let Simulation { params, fluid, walls, solids, solid_model, work, arena, .. } = self;
+        let Simulation { params, fluid, walls, solids, solid_model, backend, work, pairs, arena, .. } = self;
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
-        let mut stats = step_passes(params, fluid, walls, bodies, work, arena, dt);
+        let cx = StepCtx { p: params, dt, arena, tm: PassTimes::default() };
+        let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work, pairs);
         arena.reset();
-        if let Some(reason) = work.backend.take_error() {
+        if let Some(reason) = backend.take_error() {
             return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
         }
         self.time += dt as f64;
@@ -66,7 +68,7 @@ impl Simulation {
         }
         let (dt_next, by) = self.dt_rule(speed, stats.cfl_drift_speed.max(stats.max_darcy_speed));
         (self.dt, stats.next_dt_limit) = (dt_next, Some(by));
-        stats.times.ms[pass::TIME_STEP] += t.elapsed().as_secs_f64() * 1e3;
+        stats.times.add(Pass::TimeStep, t.elapsed().as_secs_f64() * 1e3);
         stats.max_speed = speed;
         stats.dt = dt;
         self.last = stats;
@@ -217,35 +219,49 @@ struct Bodies<'a> {
     model: &'a mut dyn SolidModel,
 }
 
+/// What every stage of a step reads besides its own inputs, and where it
+/// times itself.
+pub(super) struct StepCtx<'a> {
+    /// The scene's parameters.
+    pub p: &'a Params,
+    /// The step's dt, s.
+    pub dt: f32,
+    /// Scratch of the step (reset after it): the stages' outputs live here.
+    pub arena: &'a Bump,
+    /// Milliseconds per pass.
+    pub tm: PassTimes,
+}
+
 /// The stages of one step, in the order of P Alg. 1 (with Alg. 2-4 where
 /// it calls them); scratch comes from `arena`. Where a later distributed
 /// run exchanges halo data, it is between these stages: the positions
 /// after the neighbour search, the volumes and rows before the solve, the
 /// pressures within it (the backend's loop), the velocities before the
 /// transport.
-fn step_passes(
-    p: &Params,
+fn step_passes<'a>(
+    mut cx: StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     bodies: Bodies,
+    backend: &mut dyn Passes,
     w: &mut Workspace,
-    arena: &Bump,
-    dt: f32,
+    pairs: &'a mut PairSet,
 ) -> StepStats {
     let mut st = StepStats::default();
+    let (p, dt) = (cx.p, cx.dt);
+    let cx = &mut cx;
     let Bodies { store: solids, model } = bodies;
     let porous = p.porous() && !solids.is_empty() && !fluid.is_empty();
-    let tm = &mut st.times;
 
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
-    neighbours::search(p, fluid, walls, solids, w, arena, tm);
-    let part = porous.then(|| porous::partition(p, fluid, solids, walls, w, arena, tm));
+    neighbours::search(cx, fluid, walls, solids, w, pairs, backend);
+    let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w, pairs));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
-    let ph = phases::bookkeeping(p, fluid, porous, arena, tm);
-    let vols = volumes::volumes(p, fluid, walls, solids, w, &ph, arena, tm);
-    let pred = prediction::predict(p, fluid, &w.ff, &mut w.visc_coef, &ph, dt, arena, tm);
+    let ph = phases::bookkeeping(cx, fluid, porous);
+    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph);
+    let pred = prediction::predict(cx, fluid, &pairs.ff, &mut w.visc_coef, &ph);
     st.viscosity_iterations = pred.iterations;
     // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and
     // u_beta on the solids (P-Eqs. 1, 9, 15, 19); and Alg. 3's fluid terms
@@ -253,22 +269,22 @@ fn step_passes(
     // (P-Eqs. 13, 16-22); the solids' stress (P-Eq. 5) and the velocities
     // they would have without the fluid's pressure.
     if !solids.is_empty() {
-        solid::strain(solids, model, tm);
+        solid::strain(cx, solids, model);
     }
-    let terms = part.as_ref().map(|part| porous::solid_terms(p, fluid, solids, w, part, p.mixture(), arena, tm));
+    let terms = part.as_ref().map(|part| porous::solid_terms(cx, fluid, solids, w, pairs, part, p.mixture()));
     if let Some(t) = &terms {
         st.max_darcy_speed = t.max_darcy_speed;
     }
     if !solids.is_empty() {
         let [sx, sy, sz] = &w.solid_sorted;
         let near = solid::Current {
-            ss: &w.ss,
-            sb: &w.sb,
+            ss: &pairs.ss,
+            sb: &pairs.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
             walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
         };
-        let cg = solid::predict(p, solids, model, terms.as_ref().and_then(|t| t.pore_stress), &near, dt, tm);
+        let cg = solid::predict(cx, solids, model, terms.as_ref().and_then(|t| t.pore_stress), &near);
         st.cg_iterations = cg.iterations;
         st.cg_residual = cg.residual;
         st.granular_substeps = model.substeps();
@@ -276,44 +292,61 @@ fn step_passes(
     // Alg. 1: a^press, the pressure solve with pressure boundaries (P-Eqs.
     // 25-29), in which the bodies give way with their compliance; Alg. 2's
     // boundary forces on the solids and Alg. 4's velocities of the solids.
-    let rows = pressure::setup(fluid, walls, solids, model, w, &ph, &vols, &pred, dt, arena, &mut st.times);
-    let solved = pressure::solve(p, fluid, walls, solids, model, w, &vols, rows, dt, arena, &mut st);
-    let tm = &mut st.times;
-    let [apx, apy, apz] = solved.ap;
+    let rows = pressure::setup(cx, fluid, walls, (solids, model), w, pairs, (&ph, &vols, &pred));
+    let solved = pressure::solve(cx, fluid, walls, (solids, model), w, backend, &vols, rows);
+    st.iterations = solved.report.iterations;
+    st.density_error = solved.report.density_error;
+    st.solid_density_error = solved.report.solid_error;
+    st.solve_restarts = solved.report.restarts;
+    st.cg_iterations += solved.solid_stats.iterations;
+    st.cg_residual = st.cg_residual.max(solved.solid_stats.residual);
+    let mut ap = solved.ap;
+    // From here on the pairs are V̄_ij grad W_ij.
+    let scaled = solved.pairs.lists();
     if !solids.is_empty() {
-        solid::finish(solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm, dt, tm);
+        solid::finish(cx, solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm);
         let [sx, sy, sz] = &w.solid_sorted;
         let near = solid::Current {
-            ss: &w.ss,
-            sb: &w.sb,
+            ss: &scaled.ss,
+            sb: &scaled.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
             walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
         };
-        tm.time(pass::ELASTICITY, || model.wall_contact(solids, &near));
+        cx.tm.time(Pass::Elasticity, || model.wall_contact(solids, &near));
     }
     // Alg. 3: a^cap and a^pore (P-Eqs. 10, 14), added to a^p.
     if let Some(t) = &terms {
-        let ap = [&mut *apx, &mut *apy, &mut *apz];
-        tm.time(pass::POROUS, || porous::accelerations(p, fluid, t, ph.rest_density, pred.u_star, dt, ap));
+        let ap = [&mut *ap.x, &mut *ap.y, &mut *ap.z];
+        cx.tm.time(Pass::Porous, || porous::accelerations(p, fluid, t, ph.rest_density, pred.u_star, dt, ap));
     }
-    // Alg. 3: drift velocities, drift momentum and transport (P-Eqs. 2,
-    // 6-7, 11-12), then the absorption exchange (P-Eq. 22).
-    let ap = [&mut *apx, &mut *apy, &mut *apz];
-    let (next, max_drift, cfl_drift) =
-        mixture::drift_and_transport(p, fluid, w, &ph, vols.vol, &pred, terms.as_ref(), ap, dt, arena, tm);
-    st.max_drift_speed = max_drift;
-    st.cfl_drift_speed = cfl_drift;
+    // Alg. 3 with two or more phases: the drift velocities (pass 10, P-Eqs.
+    // 11-12), whose a reads a^p + a^pore + a^cap, and the drift momentum
+    // a^Dm, added to a^p (pass 11).
+    let mixture_pairs = MixturePairs { ff: &scaled.ff, ffb: porous.then_some(&w.ffb) };
+    let drift = (p.mixture() && !fluid.is_empty()).then(|| {
+        let inp = (&ph, vols.vol, &pred);
+        mixture::drift(cx, fluid, &w.fluid_grid, mixture_pairs, backend, inp, terms.as_ref(), ap.view())
+    });
+    if let Some(d) = &drift {
+        mixture::drift_momentum(cx, fluid, &scaled.ff, &ph, d, ap.reborrow());
+        st.max_drift_speed = d.max_speed;
+        st.cfl_drift_speed = d.cfl_speed;
+    }
+    // Alg. 3: the transport (pass 12, P-Eqs. 2, 6-7) at the old positions,
+    // then the absorption exchange (P-Eq. 22).
+    let next = mixture::transport(cx, fluid, mixture_pairs, drift.as_ref(), porous);
     if let Some(t) = &terms {
-        porous::exchange(t, fluid.len(), &mut *next.alpha, &mut *next.beta, dt, tm);
-        let ap = [&mut *apx, &mut *apy, &mut *apz];
-        tm.time(pass::POROUS, || porous::wall_guard(p, fluid, walls, &w.fb, pred.u_star, dt, ap));
+        porous::exchange(cx, t, fluid.len(), &mut *next.alpha, &mut *next.beta);
+        let ap = [&mut *ap.x, &mut *ap.y, &mut *ap.z];
+        cx.tm.time(Pass::Porous, || porous::wall_guard(p, fluid, walls, &scaled.fb, pred.u_star, dt, ap));
     }
     // Alg. 4: integration of P-Eqs. 6-8, then sum_k (alpha_k + beta_k) = 1.
-    integrate::positions(fluid, solids, pred.u_star, Vel { x: apx, y: apy, z: apz }, dt, tm);
-    integrate::correct_fractions(fluid, next, arena, tm);
+    integrate::positions(cx, fluid, solids, pred.u_star, ap.view());
+    integrate::correct_fractions(cx, fluid, next);
     if let Some(part) = &part {
-        porous::settle(fluid, part, tm);
+        porous::settle(cx, fluid, part);
     }
+    st.times = cx.tm;
     st
 }

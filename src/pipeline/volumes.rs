@@ -1,20 +1,21 @@
-//! Pass 2 (PHYSICS.md §6 4a-b; P §5, §6.1): the current volumes
+//! Passes 2 and 4a-b (PHYSICS.md §6; P §5, §6.1): the current volumes
 //! V = V0 / sum_j V0_j W_ij of the fluid, the active walls and the solids
 //! (pressure boundaries, PHYSICS.md §2.3), and the densities of the output
 //! (the fluid's: its outer mixture's rest density times V0 / V).
 
 use super::phases::PhaseState;
-use super::timing::{pass, PassTimes};
-use super::{Params, Workspace};
+use super::step::StepCtx;
+use super::timing::Pass;
+use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::elasticity::RestState;
 use porosph_kernels::iisph::{self, SolidPairs};
+use porosph_kernels::soa::zeros;
 use porosph_kernels::solid_rows::{self, SolidNeighbours};
 use rayon::prelude::*;
 
-/// What pass 2 gives the pressure solve.
+/// What passes 2 and 4a-b give the pressure solve.
 pub(super) struct Volumes<'a> {
     /// Fluid: sigma = sum_j V0_j W_ij, V = V0 / sigma (m^3), V / m (m^3/kg).
     pub sigma: &'a [f32],
@@ -37,22 +38,21 @@ pub(super) struct Volumes<'a> {
     pub vol_solid: &'a [f32],
 }
 
-/// Pass 2; writes the output densities of the fluid and the walls.
-#[allow(clippy::too_many_arguments)]
+/// Passes 2 and 4a-b; writes the output densities of the fluid and the walls.
 pub(super) fn volumes<'a>(
-    p: &Params,
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &mut WallStore,
     solids: &SolidStore,
     w: &Workspace,
+    pairs: &PairSet,
     ph: &PhaseState,
-    arena: &'a Bump,
-    tm: &mut PassTimes,
 ) -> Volumes<'a> {
+    let (p, arena) = (cx.p, cx.arena);
+    let tm = &mut cx.tm;
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
-    let zeros = |n: usize| arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (sigma, vol, vm) = (zeros(n), zeros(n), zeros(n));
-    let (sigma_b, vol_b, vol_b_full) = (zeros(na), zeros(na), zeros(walls.len()));
+    let (sigma, vol, vm) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
+    let (sigma_b, vol_b, vol_b_full) = (zeros(arena, na), zeros(arena, na), zeros(arena, walls.len()));
     let body_s =
         arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| p.solid_group[solids.body[i as usize] as usize]));
     let fixed_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| solids.fixed[i as usize]));
@@ -64,16 +64,22 @@ pub(super) fn volumes<'a>(
     let v0_free =
         arena.alloc_slice_fill_iter(no_walls_s.iter().zip(v0_s.iter()).map(|(&f, &v)| if f != 0 { 0.0 } else { v }));
     let own = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| w.solid_own[i as usize]));
-    let (sigma_s, vol_s) = (zeros(ns), zeros(ns));
-    tm.time(pass::DENSITIES, || {
-        let fs = (ns > 0).then_some(SolidPairs { pairs: &w.fs, values: &*v0_s });
-        iisph::fluid_volumes(&w.ff, &w.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
-        iisph::wall_volumes(&w.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
+    let (sigma_s, vol_s) = (zeros(arena, ns), zeros(arena, ns));
+    tm.time(Pass::Densities, || {
+        let fs = (ns > 0).then_some(SolidPairs { pairs: &pairs.fs, values: &*v0_s });
+        iisph::fluid_volumes(&pairs.ff, &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
+        iisph::wall_volumes(&pairs.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
         if ns > 0 {
-            let nb =
-                SolidNeighbours { sf: &w.sf, sb: &w.sb, ss: &w.ss, body: body_s, fixed: fixed_s, no_walls: no_walls_s };
+            let nb = SolidNeighbours {
+                sf: &pairs.sf,
+                sb: &pairs.sb,
+                ss: &pairs.ss,
+                body: body_s,
+                fixed: fixed_s,
+                no_walls: no_walls_s,
+            };
             solid_rows::solid_volumes(nb, own, ph.v0, &walls.rest_volume, v0_s, sigma_s, vol_s);
-            solid_rows::wall_solid_volumes(&w.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
+            solid_rows::wall_solid_volumes(&pairs.bs, &w.active, &walls.rest_volume, v0_free, sigma_b, vol_b);
         }
         // Output density of every wall: its fluid-free value, then the
         // active walls' (no dependence on the last step's active set, which
@@ -125,7 +131,7 @@ pub(super) fn volumes<'a>(
 /// The rest data of the solid rows of every solid particle (store order),
 /// from the body's rest lattice: with n_i = h^3 sum_j W_ij over the body's
 /// rest neighbours (incl. itself) and gamma the same sum at a flat face
-/// (`setup::flat_wall_gamma`, 0.725):
+/// (`Kernel::flat_wall_gamma`, 0.725):
 /// - omega_s = min(n_i, gamma), the share of the row's neighbourhood its own
 ///   body fills: a solid is sampled on the fluid's lattice, so at its faces,
 ///   edges and corners this is the share the fluid does not fill at rest
@@ -149,7 +155,7 @@ pub(super) fn volumes<'a>(
 /// kicked them into the body at 1.6 m/s.)
 pub(super) fn rest_rows(p: &Params, solids: &SolidStore) -> (Vec<f32>, Vec<f32>) {
     let kernel = &p.kernel;
-    let gamma = super::setup::flat_wall_gamma(kernel, p.h);
+    let gamma = kernel.flat_wall_gamma(p.h);
     let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
     let rest = RestState::new(&x0, &p.particle_groups(solids), &p.particle_rest_mass(solids), kernel);
     let cell = p.cell_volume();

@@ -30,6 +30,7 @@ pub use select::{Clip, Hide};
 
 use crate::io::{ArrayData, Frame, IoError};
 use crate::run::kind;
+use glam::Vec3;
 use rayon::prelude::*;
 use std::fmt;
 use std::path::Path;
@@ -383,17 +384,20 @@ impl Image {
     }
 }
 
+/// a . b of the frame's xyz triples (glam's, in the same order of terms).
 fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    Vec3::from(a).dot(Vec3::from(b))
 }
 
+/// a x b of the frame's xyz triples.
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    Vec3::from(a).cross(Vec3::from(b)).to_array()
 }
 
+/// |a - b|.
 fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
-    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    dot(d, d).sqrt()
+    let d = Vec3::from(a) - Vec3::from(b);
+    d.dot(d).sqrt()
 }
 
 /// A float array of the frame, checked: `None` if absent.

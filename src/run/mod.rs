@@ -15,10 +15,10 @@ pub use checkpoints::{newest_checkpoint, CheckpointEvery, Checkpoints};
 pub use frame::{kind, INNER_SHADE, WALL_ARRAYS_PER_FRAME};
 pub use summary::RunSummary;
 
-use crate::backend::GPU_PASS_NAMES;
+use crate::backend::GpuPasses;
 use crate::io::checkpoint::RunInfo;
 use crate::io::{write_frame, write_frame_as, FrameLayout, IoError, SeriesWriter, SharedRows, StatsWriter};
-use crate::pipeline::{Simulation, StepError, PASSES};
+use crate::pipeline::{Pass, Simulation, StepError};
 use crate::scene::{Phase, Solid};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
@@ -180,9 +180,9 @@ pub fn stats_columns(phases: &[Phase], solids: &[Solid]) -> Vec<String> {
     let porous = || solids.iter().filter(|s| s.porous.is_some());
     c.extend(porous().map(|s| format!("absorbed_{}", s.name)));
     c.extend(porous().map(|s| format!("saturation_{}", s.name)));
-    c.extend(PASSES.iter().map(|p| format!("ms_{p}")));
+    c.extend(Pass::ALL.iter().map(|p| format!("ms_{p}")));
     c.push("ms_step".to_string());
-    c.extend(GPU_PASS_NAMES.iter().map(|p| format!("gpu_ms_{p}")));
+    c.extend(GpuPasses::PASSES.iter().map(|p| format!("gpu_ms_{p}")));
     c
 }
 
@@ -402,9 +402,7 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
         row.extend(saturation);
         row.extend(st.times.ms);
         row.push(ms_step);
-        row.extend(
-            GPU_PASS_NAMES.iter().map(|name| st.times.gpu_ms[PASSES.iter().position(|p| p == name).unwrap_or(0)]),
-        );
+        row.extend(GpuPasses::PASSES.iter().map(|&p| st.times.gpu(p)));
         stats.row(&row)?;
         if sim.time >= next_frame - 1e-9 {
             write(sim, &mut frames, &mut series)?;

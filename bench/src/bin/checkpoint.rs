@@ -17,6 +17,7 @@
 //! cargo run --release -p porosph-bench --bin checkpoint -- --particles 1000000 --threads 2
 //! ```
 
+use clap::Parser;
 use porosph::io::checkpoint::{load_checkpoint, read_checkpoint_with, write_checkpoint, ReadMethod, RunInfo};
 use porosph::pipeline::Simulation;
 use porosph::scene::Scene;
@@ -24,29 +25,25 @@ use porosph::store::Column;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Checkpoint write and read times of a dam-break state.
+#[derive(Parser)]
+#[command(name = "checkpoint", about)]
 struct Args {
+    /// Fluid particles per m^3 (spacing 1 / cbrt(N)).
+    #[arg(long, value_name = "N", default_value_t = 1e6)]
     particles: f64,
+    #[arg(long, default_value_t = 2)]
     threads: usize,
+    /// Timed runs of each operation.
+    #[arg(long, value_name = "N", default_value_t = 3)]
     repeat: usize,
+    /// Where the checkpoints go (default: the system's temporary directory).
+    #[arg(long, default_value_os_t = std::env::temp_dir())]
     dir: PathBuf,
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { particles: 1e6, threads: 2, repeat: 3, dir: std::env::temp_dir() };
-    let mut it = std::env::args().skip(1);
-    while let Some(k) = it.next() {
-        let mut v = || it.next().ok_or(format!("{k} needs a value"));
-        match k.as_str() {
-            "--particles" => a.particles = v()?.parse().map_err(|e| format!("--particles: {e}"))?,
-            "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
-            "--repeat" => a.repeat = v()?.parse().map_err(|e| format!("--repeat: {e}"))?,
-            "--dir" => a.dir = PathBuf::from(v()?),
-            "-h" | "--help" => {
-                return Err("usage: checkpoint [--particles N] [--threads N] [--repeat N] [--dir DIR]".into())
-            }
-            _ => return Err(format!("unknown argument {k}")),
-        }
-    }
+    let a = Args::parse();
     if a.repeat == 0 {
         return Err("--repeat must be at least 1".into());
     }

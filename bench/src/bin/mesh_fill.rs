@@ -15,9 +15,25 @@
 //! cargo run --release -p porosph-bench --bin mesh_fill -- --triangles 100000 --spacing 0.01
 //! ```
 
+use clap::Parser;
 use porosph::scene::{sample_fluid, sample_walls, Scene};
 use std::f64::consts::PI;
 use std::time::Instant;
+
+/// Time to fill a closed triangle mesh with particles.
+#[derive(Parser)]
+#[command(name = "mesh_fill", about)]
+struct Cli {
+    /// Triangles of the mesh (at least 8; `1e5` is accepted).
+    #[arg(long, value_name = "N", default_value_t = 100_000.0)]
+    triangles: f64,
+    /// Particle spacing, m.
+    #[arg(long, value_name = "M", default_value_t = 0.01)]
+    spacing: f64,
+    /// Timed runs.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    repeat: usize,
+}
 
 struct Args {
     triangles: usize,
@@ -26,18 +42,8 @@ struct Args {
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { triangles: 100_000, spacing: 0.01, repeat: 5 };
-    let mut it = std::env::args().skip(1);
-    while let Some(k) = it.next() {
-        let mut v = || it.next().ok_or(format!("{k} needs a value"));
-        match k.as_str() {
-            "--triangles" => a.triangles = v()?.parse::<f64>().map_err(|e| format!("--triangles: {e}"))? as usize,
-            "--spacing" => a.spacing = v()?.parse().map_err(|e| format!("--spacing: {e}"))?,
-            "--repeat" => a.repeat = v()?.parse().map_err(|e| format!("--repeat: {e}"))?,
-            "-h" | "--help" => return Err("usage: mesh_fill [--triangles N] [--spacing M] [--repeat N]".into()),
-            _ => return Err(format!("unknown argument {k}")),
-        }
-    }
+    let c = Cli::parse();
+    let a = Args { triangles: c.triangles as usize, spacing: c.spacing, repeat: c.repeat };
     if a.repeat == 0 || a.triangles < 8 || a.spacing.is_nan() || a.spacing <= 0.0 {
         return Err("--repeat >= 1, --triangles >= 8 and --spacing > 0".into());
     }

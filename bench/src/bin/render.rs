@@ -13,10 +13,33 @@
 //! cargo run --release -p porosph-bench --bin render -- --particles 1000000 --threads 2
 //! ```
 
+use clap::Parser;
 use porosph::io::{ArrayData, Frame, PointArray};
 use porosph::render::{render, ColorMode, RenderOptions};
 use porosph::run::kind;
 use std::time::Instant;
+
+/// Time to render a large synthetic frame to a PNG.
+#[derive(Parser)]
+#[command(name = "render", about)]
+struct Cli {
+    /// Points of the frame, fluid and solid (`1e6` is accepted).
+    #[arg(long, value_name = "N", default_value_t = 1e6)]
+    particles: f64,
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Timed runs.
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    repeat: usize,
+    /// Image size, pixels.
+    #[arg(long, value_name = "W", default_value_t = 1920)]
+    width: u32,
+    #[arg(long, value_name = "H", default_value_t = 1080)]
+    height: u32,
+    /// Also write the image to this PNG file.
+    #[arg(long, value_name = "PNG")]
+    out: Option<String>,
+}
 
 struct Args {
     particles: usize,
@@ -28,25 +51,15 @@ struct Args {
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { particles: 1_000_000, threads: 2, repeat: 5, width: 1920, height: 1080, out: None };
-    let mut it = std::env::args().skip(1);
-    while let Some(k) = it.next() {
-        let mut v = || it.next().ok_or(format!("{k} needs a value"));
-        match k.as_str() {
-            "--particles" => a.particles = v()?.parse::<f64>().map_err(|e| format!("--particles: {e}"))? as usize,
-            "--threads" => a.threads = v()?.parse().map_err(|e| format!("--threads: {e}"))?,
-            "--repeat" => a.repeat = v()?.parse().map_err(|e| format!("--repeat: {e}"))?,
-            "--width" => a.width = v()?.parse().map_err(|e| format!("--width: {e}"))?,
-            "--height" => a.height = v()?.parse().map_err(|e| format!("--height: {e}"))?,
-            "--out" => a.out = Some(v()?),
-            "-h" | "--help" => {
-                return Err("usage: render [--particles N] [--threads N] [--repeat N] [--width W] [--height H] \
-                            [--out PNG]"
-                    .into())
-            }
-            _ => return Err(format!("unknown argument {k}")),
-        }
-    }
+    let c = Cli::parse();
+    let a = Args {
+        particles: c.particles as usize,
+        threads: c.threads,
+        repeat: c.repeat,
+        width: c.width,
+        height: c.height,
+        out: c.out,
+    };
     if a.repeat == 0 || a.threads == 0 {
         return Err("--repeat and --threads must be at least 1".into());
     }

@@ -16,6 +16,7 @@ use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
 pub use crate::backend::passes::{DriftInput, DriftOutput, PorousDriftInput};
 use bytemuck::{Pod, Zeroable};
+use porosph_kernels::soa::{Vel, VelMut};
 
 /// Phases the shader's parameter block has room for.
 pub const MAX_PHASES: usize = 8;
@@ -251,8 +252,8 @@ impl DriftGpu {
                 stamps = bytemuck::pod_read_unaligned(bytes);
                 return;
             }
-            let Some(DriftOutput { ux, uy, uz, fx, fy, fz }) = &mut outs[k / 2] else { return };
-            let (x, y, z) = if k % 2 == 0 { (ux, uy, uz) } else { (fx, fy, fz) };
+            let Some(DriftOutput { u, f }) = &mut outs[k / 2] else { return };
+            let VelMut { x, y, z } = if k % 2 == 0 { u } else { f };
             for (i, v) in bytes.chunks_exact(16).enumerate() {
                 let a: [f32; 4] = bytemuck::pod_read_unaligned(v);
                 (x[i], y[i], z[i]) = (a[0], a[1], a[2]);
@@ -308,7 +309,7 @@ fn pack(out: &mut Vec<f32>, phases: &[&[f32]], n: usize) {
 }
 
 /// Three flat component arrays of `len` values into xyz0 vectors.
-fn pack_vec(out: &mut Vec<[f32; 4]>, c: [&[f32]; 3], len: usize) {
+fn pack_vec(out: &mut Vec<[f32; 4]>, c: Vel, len: usize) {
     out.clear();
-    out.extend((0..len).map(|i| [c[0][i], c[1][i], c[2][i], 0.0]));
+    out.extend((0..len).map(|i| [c.x[i], c.y[i], c.z[i], 0.0]));
 }

@@ -21,9 +21,9 @@ use super::{GpuContext, GpuError};
 pub use crate::backend::passes::{SolveReport, SolveSettings};
 use bytemuck::{Pod, Zeroable};
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::iisph::{Rows, VelMut};
+use porosph_kernels::iisph::Rows;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::soa::{Vel, VelMut};
 
 /// Iterations queued per submission (the status is read back after each).
 pub const ITERATIONS_PER_SUBMIT: u32 = 4;
@@ -85,8 +85,8 @@ pub struct SolveInput<'a> {
     pub kernel: &'a Kernel,
     pub fluid_grid: &'a CellGrid,
     pub wall_grid: &'a CellGrid,
-    pub fluid: Points<'a>,
-    pub walls: Points<'a>,
+    pub fluid: Vel<'a>,
+    pub walls: Vel<'a>,
     /// Fluid current volume V and V/m.
     pub vol: &'a [f32],
     pub vm: &'a [f32],

@@ -24,7 +24,8 @@ use super::{BackendKind, GpuPasses};
 use bumpalo::Bump;
 use porosph_kernels::drift::max_drift_speed;
 use porosph_kernels::grid::CellGrid;
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::phases::PhaseVel;
+use porosph_kernels::soa::Vel;
 use std::fmt;
 
 /// Shared WGSL (WGSL has no include), by file name: prepended to the
@@ -260,7 +261,7 @@ impl GpuBackend {
     /// Morton keys and sort of pass 0 on the GPU; see [`NeighborsGpu::sort`].
     pub fn sort_permutation(
         &mut self,
-        pts: porosph_kernels::neighbors::Points,
+        pts: porosph_kernels::soa::Vel,
         inv_cell: f32,
         sort: &mut Vec<(u64, u32)>,
         perm: &mut Vec<u32>,
@@ -318,7 +319,7 @@ impl Passes for GpuBackend {
     /// The keys and sort on the GPU (bitwise the CPU's order), or on the CPU.
     fn sort(
         &mut self,
-        fluid: Points,
+        fluid: Vel,
         inv_cell: f32,
         keys: &mut Vec<u64>,
         sort: &mut Vec<(u64, u32)>,
@@ -394,7 +395,7 @@ impl Passes for GpuBackend {
             let n = prob.input.alpha_f.len();
             match GpuBackend::drift(self, &prob.input, out.reborrow(), inner.as_mut().map(|o| o.reborrow())) {
                 Ok(ms) => {
-                    let speed = |o: &DriftOutput| max_drift_speed(super::cpu::phase_vel(arena, o.ux, o.uy, o.uz, n), n);
+                    let speed = |o: &DriftOutput| max_drift_speed(PhaseVel::split(arena, o.u.view(), n), n);
                     let max_speed = speed(&out).max(inner.as_ref().map_or(0.0, speed));
                     return DriftReport { max_speed, gpu_ms: ms.unwrap_or(0.0) };
                 }
@@ -408,7 +409,7 @@ impl Passes for GpuBackend {
         self.error.take()
     }
 
-    fn gpu(&self) -> Option<&GpuBackend> {
-        Some(self)
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 }

@@ -8,7 +8,7 @@
 use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::soa::Vel;
 
 /// The uniform parameters of `shaders/neighbors.wgsl` (`struct NeighborParams`).
 #[repr(C)]
@@ -117,7 +117,7 @@ impl NeighborsGpu {
     pub fn sort(
         &mut self,
         ctx: &GpuContext,
-        pts: Points,
+        pts: Vel,
         inv_cell: f32,
         sort: &mut Vec<(u64, u32)>,
         perm: &mut Vec<u32>,

@@ -16,7 +16,7 @@ use super::buffers::{read_back, GpuArray, READBACK, STORAGE};
 use super::{GpuContext, GpuError};
 pub use crate::backend::passes::WallInput;
 use porosph_kernels::grid::{cell_of, unmorton, CellGrid};
-use porosph_kernels::neighbors::Points;
+use porosph_kernels::soa::Vel;
 use rayon::prelude::*;
 
 /// Ranges per query row.
@@ -60,7 +60,7 @@ pub fn fluid_rows(
 
 /// Rows of the active walls, one per wall: row k of `bf` holds the fluid
 /// ranges around the cell of wall `active[k]`.
-pub fn wall_rows(walls: Points, active: &[u32], fluid_grid: &CellGrid, bf: &mut Vec<[u32; 2]>) {
+pub fn wall_rows(walls: Vel, active: &[u32], fluid_grid: &CellGrid, bf: &mut Vec<[u32; 2]>) {
     bf.resize(active.len() * RANGES, [0, 0]);
     bf.par_chunks_mut(RANGES).zip(active.par_iter()).for_each(|(out, &b)| {
         let b = b as usize;
