@@ -112,6 +112,11 @@ struct Cli {
     /// The passes `--backend gpu` runs on the GPU (comma-separated, or `all`).
     #[arg(long, value_name = "PASSES", default_value = "all")]
     gpu_passes: GpuPasses,
+    /// The pressure solve's Chebyshev semi-iteration (`chebyshev_radius`
+    /// in [0, 1); 0 = plain Jacobi; default: the scene's, 0 for the
+    /// built-in scenes).
+    #[arg(long, value_name = "RHO")]
+    chebyshev_radius: Option<f32>,
 }
 
 struct Args {
@@ -132,6 +137,7 @@ struct Args {
     json: Option<String>,
     backend: BackendKind,
     gpu_passes: GpuPasses,
+    chebyshev_radius: Option<f32>,
 }
 
 #[derive(Default)]
@@ -159,7 +165,11 @@ fn parse() -> Result<Args, String> {
         json: c.json,
         backend: c.backend,
         gpu_passes: c.gpu_passes,
+        chebyshev_radius: c.chebyshev_radius,
     };
+    if a.chebyshev_radius.is_some_and(|r| !(0.0..1.0).contains(&r)) {
+        return Err("--chebyshev-radius must be in [0, 1)".into());
+    }
     if a.steps <= a.warmup {
         return Err("--steps must exceed --warmup".into());
     }
@@ -367,7 +377,12 @@ fn main() {
 
 fn bench(a: &Args) {
     let scene = match scene(a) {
-        Ok(s) => s,
+        Ok(mut s) => {
+            if let Some(r) = a.chebyshev_radius {
+                s.simulation.chebyshev_radius = r;
+            }
+            s
+        }
         Err(e) => {
             eprintln!("{e}");
             std::process::exit(2);
