@@ -21,8 +21,10 @@ use std::fmt;
 pub struct StepError {
     pub step: u64,
     pub time: f64,
-    /// Stable id of the first offending particle.
-    pub particle: u32,
+    /// Stable id of the first offending particle; `None` when the step
+    /// stopped for a reason that is not a particle's (a GPU pass failed),
+    /// and then position and velocity are NaN.
+    pub particle: Option<u32>,
     pub position: [f32; 3],
     pub velocity: [f32; 3],
     pub reason: String,
@@ -30,11 +32,11 @@ pub struct StepError {
 
 impl fmt::Display for StepError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "step {} (t = {:.6} s): {}: particle id {} at {:?} m with velocity {:?} m/s",
-            self.step, self.time, self.reason, self.particle, self.position, self.velocity
-        )
+        write!(f, "step {} (t = {:.6} s): {}", self.step, self.time, self.reason)?;
+        match self.particle {
+            Some(id) => write!(f, ": particle id {id} at {:?} m with velocity {:?} m/s", self.position, self.velocity),
+            None => Ok(()),
+        }
     }
 }
 
@@ -57,7 +59,15 @@ impl Simulation {
         let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work, pairs);
         arena.reset();
         if let Some(reason) = backend.take_error() {
-            return Err(StepError { step: self.step, time: self.time, reason, ..self.blowup(0.0) });
+            let nan = [f32::NAN; 3];
+            return Err(StepError {
+                step: self.step,
+                time: self.time,
+                particle: None,
+                position: nan,
+                velocity: nan,
+                reason,
+            });
         }
         self.time += dt as f64;
         self.step += 1;
@@ -151,13 +161,11 @@ impl Simulation {
         let fluid_bad = (0..f.len()).find(|&i| bad([f.x[i], f.y[i], f.z[i]], [f.ux[i], f.uy[i], f.uz[i]]));
         let solid_bad = (0..s.len()).find(|&i| bad([s.x[i], s.y[i], s.z[i]], [s.vx[i], s.vy[i], s.vz[i]]));
         // The offending particle: a fluid one if any, else a solid one.
+        let nan = [f32::NAN; 3];
         let (what, id, position, velocity) = match (fluid_bad, solid_bad) {
-            (None, Some(b)) => ("solid velocity", s.id[b], [s.x[b], s.y[b], s.z[b]], [s.vx[b], s.vy[b], s.vz[b]]),
-            _ if f.is_empty() => ("velocity", 0, [f32::NAN; 3], [f32::NAN; 3]),
-            (b, _) => {
-                let b = b.unwrap_or(0);
-                ("velocity", f.id.get(b).copied().unwrap_or(0), [f.x[b], f.y[b], f.z[b]], [f.ux[b], f.uy[b], f.uz[b]])
-            }
+            (None, Some(b)) => ("solid velocity", Some(s.id[b]), [s.x[b], s.y[b], s.z[b]], [s.vx[b], s.vy[b], s.vz[b]]),
+            (Some(b), _) => ("velocity", Some(f.id[b]), [f.x[b], f.y[b], f.z[b]], [f.ux[b], f.uy[b], f.uz[b]]),
+            (None, None) => ("velocity", None, nan, nan),
         };
         StepError {
             step: self.step,
@@ -349,4 +357,31 @@ fn step_passes<'a>(
     }
     st.times = cx.tm;
     st
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StepError;
+
+    /// A step stopped by a failed GPU pass names no particle (it named
+    /// particle id 0 at NaN, as if one had blown up); a blow-up names its
+    /// particle.
+    #[test]
+    fn a_step_error_names_a_particle_only_when_one_caused_it() {
+        let nan = [f32::NAN; 3];
+        let e = StepError {
+            step: 3,
+            time: 0.006,
+            particle: None,
+            position: nan,
+            velocity: nan,
+            reason: "GPU pressure solve failed: device lost".into(),
+        };
+        assert_eq!(e.to_string(), "step 3 (t = 0.006000 s): GPU pressure solve failed: device lost");
+        let e = StepError { particle: Some(42), position: [0.0, 1.0, 2.0], velocity: [3.0; 3], ..e };
+        assert!(
+            e.to_string().ends_with(": particle id 42 at [0.0, 1.0, 2.0] m with velocity [3.0, 3.0, 3.0] m/s"),
+            "{e}"
+        );
+    }
 }
