@@ -250,6 +250,83 @@ pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: Vel, scale: f32, v: Vel
         });
 }
 
+/// The part of the drift velocity u_mk that P-Eq. 11's porous term gives
+/// (after [`add_phase_term`] and the mixture sums of `drift`), subtracted:
+/// `out` = u_mk - (t_k - sum_k' c_k' t_k'), t_k = `scale` e_k, c_k the mass
+/// fractions alpha_k rho_k / sum_k' alpha_k' rho_k'; where `frac_f` <
+/// `crate::phases::MIN_ALPHA_F` or the particle has no mass the drift has
+/// no such part and `out` = u_mk. Phase k of `e`, `u` and `out` at
+/// `[k n, (k + 1) n)` of each component.
+///
+/// What it is for: the drift momentum term a^Dm (`drift_momentum`) of the
+/// phases' buoyancy slip and diffusion, without the momentum flux of the
+/// pore drift, -(1/rho) div(sum_k alpha_k rho_k u^pore_mk u^pore_mk).
+/// The pore drift is P's model of the suction at a porous surface
+/// (P §4.2: "sucking or propelling effects due to absorption or emission
+/// near the porous solid surface"): phi (p_0k - p^pore_s) across the one
+/// support that P-Eq. 20's one-sided sum spans, u ~ phi dp / H, several m/s
+/// at P Table 2's values in the fluid layer next to the surface and 0 one
+/// support away. As a momentum flux rho alpha u^2 that is a pressure of
+/// about 8 kPa (rho 1000, alpha 1/3, u 5 m/s), a third of the pore
+/// pressure difference itself and growing as 1/H^2 under refinement, with
+/// no counterpart in the poroelastic model it stands for (P-Eq. 8 has no
+/// drift momentum term; PHYSICS.md §4.1 takes a^Dm from the mixture model
+/// of Ren et al. 2014, where u_mk is a real slip). Example 5 measured
+/// (bench/RESULTS.md): with it, 310 m/s^2 in the first step from rest and
+/// fluid particles above 3 m/s in 102 of 661 steps to 0.3 s; without it,
+/// gravity alone in the first step and none above 2.6 m/s.
+#[allow(clippy::too_many_arguments)]
+pub fn without_phase_term(
+    frac: &[&[f32]],
+    frac_f: &[f32],
+    density: &[f32],
+    e: Vel,
+    scale: f32,
+    u: Vel,
+    out: VelMut,
+    mean: VelMut,
+) {
+    let n = frac_f.len();
+    let np = frac.len();
+    // sum_k' c_k' t_k' per particle.
+    mean.x
+        .par_chunks_mut(BLOCK)
+        .zip(mean.y.par_chunks_mut(BLOCK))
+        .zip(mean.z.par_chunks_mut(BLOCK))
+        .enumerate()
+        .for_each(|(b, ((mx, my), mz))| {
+            for q in 0..mx.len() {
+                let i = b * BLOCK + q;
+                let mass: f32 = (0..np).map(|k| frac[k][i] * density[k]).sum();
+                let mut m = [0.0f32; 3];
+                if frac_f[i] >= crate::phases::MIN_ALPHA_F && mass > 0.0 {
+                    for (k, rho) in density.iter().enumerate() {
+                        let r = k * n + i;
+                        let c = frac[k][i] * rho;
+                        m[0] += c * (scale * e.x[r]);
+                        m[1] += c * (scale * e.y[r]);
+                        m[2] += c * (scale * e.z[r]);
+                    }
+                    m = m.map(|m| m / mass);
+                }
+                (mx[q], my[q], mz[q]) = (m[0], m[1], m[2]);
+            }
+        });
+    let mean = Vel { x: &*mean.x, y: &*mean.y, z: &*mean.z };
+    for (o, (u, (e, m))) in [out.x, out.y, out.z]
+        .into_iter()
+        .zip([u.x, u.y, u.z].into_iter().zip([e.x, e.y, e.z].into_iter().zip([mean.x, mean.y, mean.z])))
+    {
+        o.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+            for (q, o) in o.iter_mut().enumerate() {
+                let r = b * BLOCK + q;
+                let i = r % n;
+                *o = if frac_f[i] >= crate::phases::MIN_ALPHA_F { u[r] - (scale * e[r] - m[i]) } else { u[r] };
+            }
+        });
+    }
+}
+
 /// Below this fraction the absorption exchange moves all of it
 /// (PHYSICS.md §4.2, after [AC] `ComputeFluidChange`).
 pub const MIN_EXCHANGE_FRACTION: f32 = 0.001;

@@ -43,7 +43,9 @@ pub(super) struct MixturePairs<'a> {
 
 /// What pass 10 gives passes 11 and 12.
 pub(super) struct Drift<'a> {
-    /// u_mk per phase, m/s.
+    /// u_mk per phase as the drift momentum term takes it: without
+    /// P-Eq. 11's porous term (`porosph_kernels::porous::without_phase_term`),
+    /// m/s.
     pub u: PhaseVel<'a>,
     /// The outer phase fluxes F_k, and with porous solids the inner ones,
     /// m/s.
@@ -158,8 +160,27 @@ pub(super) fn drift<'a>(
             drift::max_advective_speed(&outer).max(inner.map_or(0.0, |i| drift::max_advective_speed(&i)))
         })
     };
+    let u = u.into_view();
+    let u_momentum = match terms {
+        Some(t) if p.pore_drift != 0.0 && p.drift_momentum_sign != 0.0 => cx.tm.time(Pass::DriftMomentum, || {
+            let (mut out, mut mean) = (zeros3(arena, np * n), zeros3(arena, n));
+            let density = &p.phase_density;
+            porosph_kernels::porous::without_phase_term(
+                alpha,
+                ph.alpha_f,
+                density,
+                t.grad_pore,
+                -p.pore_drift,
+                u,
+                out.reborrow(),
+                mean.reborrow(),
+            );
+            out.into_view()
+        }),
+        _ => u,
+    };
     Drift {
-        u: PhaseVel::split(arena, u.into_view(), n),
+        u: PhaseVel::split(arena, u_momentum, n),
         flux: PhaseVel::split(arena, f.into_view(), n),
         inner_flux: porous.then(|| PhaseVel::split(arena, bf.into_view(), n)),
         max_speed: report.max_speed,
