@@ -159,6 +159,13 @@ pub fn sort_permutation(keys: &[u64], scratch: &mut Vec<(u64, u32)>, perm: &mut 
 /// `near`, if given, is a set of cells outside which no query has a target
 /// within reach (see [`CellGrid::dilated_keys`]); queries there are skipped
 /// with one lookup instead of 27.
+///
+/// Consecutive queries in one cell share their candidates: the targets of
+/// the 27 cells around it, less those at H or more from the bounding box of
+/// these queries, packed once into a scratch list which each query then
+/// tests. (Geometry: on the start lattice at H = 2 d a cell's 8 queries
+/// span about d per axis, and the volume within H of that box is 10.5 H^3
+/// of the 27 cells' 27 H^3.)
 pub fn build_pairs(
     lists: &mut PairLists,
     query: Vel,
@@ -173,57 +180,84 @@ pub fn build_pairs(
         lists.blocks.resize_with(nblocks, PairBlock::default);
     }
     lists.n = n;
-    let h2 = kernel.support * kernel.support;
     lists.blocks[..nblocks].par_iter_mut().enumerate().for_each(|(b, blk)| {
-        blk.clear();
-        let lo = b * BLOCK;
-        let hi = (lo + BLOCK).min(n);
-        let mut ranges = [(0u32, 0u32); 27];
-        let mut nr = 0;
-        let mut last_cell = [u32::MAX; 3];
-        blk.start.push(0);
-        for i in lo..hi {
-            let (xi, yi, zi) = (query.x[i], query.y[i], query.z[i]);
-            let c = cell_of(xi, yi, zi, grid.inv_cell);
-            if c != last_cell {
-                nr = if near.is_some_and(|set| set.find(morton(c)).is_none()) {
-                    0
-                } else {
-                    let found = grid.neighbor_ranges(c, &mut ranges);
-                    merge_ranges(&mut ranges, found)
-                };
-                last_cell = c;
+        CANDIDATES.with_borrow_mut(|cand| {
+            let lo = b * BLOCK;
+            block_pairs(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel)
+        })
+    });
+}
+
+/// The candidate targets shared by a run of queries in one cell (see
+/// [`build_pairs`]): positions and target indices, padded to whole vectors
+/// with NaN positions (never within reach).
+#[derive(Default)]
+struct Candidates {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    j: Vec<u32>,
+}
+
+thread_local! {
+    /// Each worker's candidate list, kept between calls so that a step in
+    /// steady state allocates nothing (tests/no_alloc.rs).
+    static CANDIDATES: std::cell::RefCell<Candidates> = std::cell::RefCell::default();
+}
+
+/// The pairs of the queries `rows` (one cache block) into `blk`.
+#[allow(clippy::too_many_arguments)]
+fn block_pairs(
+    blk: &mut PairBlock,
+    cand: &mut Candidates,
+    query: Vel,
+    rows: std::ops::Range<usize>,
+    target: Vel,
+    grid: &CellGrid,
+    near: Option<&CellGrid>,
+    kernel: &Kernel,
+) {
+    let h2 = kernel.support * kernel.support;
+    blk.clear();
+    blk.start.push(0);
+    let mut ranges = [(0u32, 0u32); 27];
+    let mut i = rows.start;
+    while i < rows.end {
+        // The run i..e of queries in the cell of query i, and their box.
+        let c = cell_of(query.x[i], query.y[i], query.z[i], grid.inv_cell);
+        let (mut bmin, mut bmax) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        let mut e = i;
+        while e < rows.end {
+            let q = [query.x[e], query.y[e], query.z[e]];
+            if e > i && cell_of(q[0], q[1], q[2], grid.inv_cell) != c {
+                break;
             }
+            // f32::min/max skip NaN: a NaN query has no pairs anyway.
+            for a in 0..3 {
+                bmin[a] = bmin[a].min(q[a]);
+                bmax[a] = bmax[a].max(q[a]);
+            }
+            e += 1;
+        }
+        let nr = if near.is_some_and(|set| set.find(morton(c)).is_none()) {
+            0
+        } else {
+            let found = grid.neighbor_ranges(c, &mut ranges);
+            merge_ranges(&mut ranges, found)
+        };
+        gather_candidates(cand, target, &ranges[..nr], bmin, bmax, h2);
+        for i in i..e {
             let first = blk.j.len();
-            let (vx, vy, vz) = (F::splat(xi), F::splat(yi), F::splat(zi));
-            // Pass 1: compress the candidates inside the support; keep their
-            // offsets x_ij in the gradient slots.
-            for &(s, e) in &ranges[..nr] {
-                let (s, e) = (s as usize, e as usize);
-                let mut k = s;
-                while k < e {
-                    let dx = vx - load_partial(target.x, k);
-                    let dy = vy - load_partial(target.y, k);
-                    let dz = vz - load_partial(target.z, k);
-                    let r2 = dx * dx + dy * dy + dz * dz;
-                    let lanes = (e - k).min(LANES);
-                    let inside = r2.simd_lt(F::splat(h2)).to_bitmask() & ((1u32 << lanes) - 1);
-                    if inside != 0 {
-                        push_offsets(blk, inside, k as u32, dx, dy, dz);
-                    }
-                    k += LANES;
-                }
-            }
+            query_pairs(blk, cand, [query.x[i], query.y[i], query.z[i]], h2);
             // Pad to whole vectors with zero pairs.
             let real = blk.j.len() - first;
             let pad = blk.j.get(first).copied().unwrap_or(0);
-            while (blk.j.len() - first) % LANES != 0 {
-                blk.j.push(pad);
-                blk.gx.push(0.0);
-                blk.gy.push(0.0);
-                blk.gz.push(0.0);
-            }
-            blk.w.resize(blk.j.len(), 0.0);
+            let end = first + real.next_multiple_of(LANES);
+            blk.j.resize(end, pad);
+            blk.gx.resize(end, 0.0);
+            blk.gy.resize(end, 0.0);
+            blk.gz.resize(end, 0.0);
+            blk.w.resize(end, 0.0);
             // Pass 2, the shape chosen once per query, not per vector.
             match kernel.shape {
                 KernelShape::CubicSpline => {
@@ -235,7 +269,150 @@ pub fn build_pairs(
             }
             blk.start.push(blk.j.len() as u32);
         }
-    });
+        i = e;
+    }
+}
+
+/// Packs into `cand` the targets of `ranges` (ascending, disjoint) that are
+/// not at H or more from the box `bmin..bmax`, in target order. The box
+/// test is conservative in floating point: for a query inside the box,
+/// rounding is monotone, so its |x_q - x_t|^2, computed as in
+/// [`query_pairs`], is at least the box distance squared; a dropped target
+/// would therefore have failed the query's own test.
+fn gather_candidates(
+    cand: &mut Candidates,
+    target: Vel,
+    ranges: &[(u32, u32)],
+    bmin: [f32; 3],
+    bmax: [f32; 3],
+    h2: f32,
+) {
+    let total: usize = ranges.iter().map(|&(s, e)| (e - s) as usize).sum();
+    for v in [&mut cand.x, &mut cand.y, &mut cand.z] {
+        v.clear();
+        v.reserve(total + LANES);
+    }
+    cand.j.clear();
+    cand.j.reserve(total + LANES);
+    let (lx, ly, lz) = (F::splat(bmin[0]), F::splat(bmin[1]), F::splat(bmin[2]));
+    let (hx, hy, hz) = (F::splat(bmax[0]), F::splat(bmax[1]), F::splat(bmax[2]));
+    let zero = F::splat(0.0);
+    let mut len = 0;
+    for &(s, e) in ranges {
+        let (s, e) = (s as usize, e as usize);
+        let mut k = s;
+        while k < e {
+            let x = load_partial(target.x, k);
+            let y = load_partial(target.y, k);
+            let z = load_partial(target.z, k);
+            // Per axis the distance to the box, 0 inside it (NaN: either
+            // way, a NaN target has no pairs).
+            let dx = (lx - x).fast_max(x - hx).fast_max(zero);
+            let dy = (ly - y).fast_max(y - hy).fast_max(zero);
+            let dz = (lz - z).fast_max(z - hz).fast_max(zero);
+            let d2 = dx * dx + dy * dy + dz * dz;
+            let lanes = (e - k).min(LANES);
+            let keep = d2.simd_lt(F::splat(h2)).to_bitmask() & ((1u32 << lanes) - 1);
+            if keep != 0 {
+                let idx: [u32; LANES] = std::array::from_fn(|l| (k + l) as u32);
+                let sel = pack::Sel::new(keep);
+                // SAFETY: each vector has room for `total + LANES` elements
+                // (reserved above) and `len + popcount(keep) <= total`; each
+                // put writes LANES elements from `len`.
+                unsafe {
+                    sel.put(cand.x.as_mut_ptr().add(len), x);
+                    sel.put(cand.y.as_mut_ptr().add(len), y);
+                    sel.put(cand.z.as_mut_ptr().add(len), z);
+                    sel.put_u32(cand.j.as_mut_ptr().add(len), &idx);
+                }
+                len += keep.count_ones() as usize;
+            }
+            k += LANES;
+        }
+    }
+    // SAFETY: the first `len` elements of each were written above.
+    unsafe {
+        cand.x.set_len(len);
+        cand.y.set_len(len);
+        cand.z.set_len(len);
+        cand.j.set_len(len);
+    }
+    let whole = len.next_multiple_of(LANES);
+    cand.x.resize(whole, f32::NAN);
+    cand.y.resize(whole, f32::NAN);
+    cand.z.resize(whole, f32::NAN);
+    cand.j.resize(whole, 0);
+}
+
+/// The whole vectors of `v`.
+#[inline(always)]
+fn vectors(v: &[f32]) -> impl Iterator<Item = F> + '_ {
+    v.chunks_exact(LANES).map(|c| F::from(<[f32; LANES]>::try_from(c).expect("a whole vector")))
+}
+
+/// Appends to `blk` the candidates within H of `q`, in candidate order:
+/// target index to `j`, the offset x_ij to the gradient slots (`w` and the
+/// gradients are filled later).
+///
+/// The lists grow only as pairs are found (a vector whose compressed store
+/// would pass the capacity is appended lane by lane, growing as a push
+/// does), so their capacity is what the pairs need, as with plain pushes,
+/// not that plus the candidates' count.
+#[inline(always)]
+fn query_pairs(blk: &mut PairBlock, cand: &Candidates, q: [f32; 3], h2: f32) {
+    let room = |b: &PairBlock| b.j.capacity().min(b.gx.capacity()).min(b.gy.capacity()).min(b.gz.capacity());
+    let mut cap = room(blk);
+    let (vx, vy, vz) = (F::splat(q[0]), F::splat(q[1]), F::splat(q[2]));
+    let mut n = blk.j.len();
+    let idx = cand.j.chunks_exact(LANES).map(|c| <&[u32; LANES]>::try_from(c).expect("a whole vector"));
+    for (((cx, cy), cz), idx) in vectors(&cand.x).zip(vectors(&cand.y)).zip(vectors(&cand.z)).zip(idx) {
+        let (dx, dy, dz) = (vx - cx, vy - cy, vz - cz);
+        let r2 = dx * dx + dy * dy + dz * dz;
+        let inside = r2.simd_lt(F::splat(h2)).to_bitmask();
+        if inside == 0 {
+            continue;
+        }
+        if n + LANES <= cap {
+            let sel = pack::Sel::new(inside);
+            // SAFETY: each vector has capacity for `n + LANES` elements
+            // (checked above); each put writes LANES elements from `n`.
+            unsafe {
+                sel.put_u32(blk.j.as_mut_ptr().add(n), idx);
+                sel.put(blk.gx.as_mut_ptr().add(n), dx);
+                sel.put(blk.gy.as_mut_ptr().add(n), dy);
+                sel.put(blk.gz.as_mut_ptr().add(n), dz);
+            }
+            n += inside.count_ones() as usize;
+        } else {
+            // SAFETY: the elements up to `n` were written (before, or by
+            // the puts above).
+            unsafe {
+                blk.j.set_len(n);
+                blk.gx.set_len(n);
+                blk.gy.set_len(n);
+                blk.gz.set_len(n);
+            }
+            let (dx, dy, dz) = (dx.to_array(), dy.to_array(), dz.to_array());
+            let mut m = inside;
+            while m != 0 {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                blk.j.push(idx[l]);
+                blk.gx.push(dx[l]);
+                blk.gy.push(dy[l]);
+                blk.gz.push(dz[l]);
+            }
+            n = blk.j.len();
+            cap = room(blk);
+        }
+    }
+    // SAFETY: the elements up to `n` were written (before, or above).
+    unsafe {
+        blk.j.set_len(n);
+        blk.gx.set_len(n);
+        blk.gy.set_len(n);
+        blk.gz.set_len(n);
+    }
 }
 
 /// Pass 2 of [`build_pairs`] for one query: kernel values and gradients
@@ -276,56 +453,151 @@ fn merge_ranges(r: &mut [(u32, u32); 27], n: usize) -> usize {
     m
 }
 
-/// Appends the lanes of `mask`: target index `base + lane` to `j`, the
-/// offset x_ij to the gradient slots (`w` is filled later).
-#[inline(always)]
-fn push_offsets(blk: &mut PairBlock, mask: u32, base: u32, gx: F, gy: F, gz: F) {
-    #[cfg(target_feature = "avx512f")]
-    {
-        use std::arch::x86_64::*;
-        let cnt = mask.count_ones() as usize;
-        let len = blk.j.len();
-        for v in [&mut blk.gx, &mut blk.gy, &mut blk.gz] {
-            v.reserve(LANES);
+/// Stream compaction of SIMD lanes: [`Sel`] selects the lanes of a 16-bit
+/// mask and writes them, in lane order, to the start of a buffer with room
+/// for LANES elements (the lanes past the count are written but not part
+/// of the result).
+mod pack {
+    use crate::lanes::{F, LANES};
+
+    /// AVX-512: one compress into a register, then a plain store (the
+    /// compress with a memory operand is microcoded on AMD Zen 4, where
+    /// those stores took 31 % of the 250k dam break's CPU time; perf,
+    /// bench/RESULTS.md).
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    pub struct Sel(core::arch::x86_64::__mmask16);
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    impl Sel {
+        #[inline(always)]
+        pub fn new(mask: u32) -> Self {
+            Sel(mask as u16)
         }
-        blk.j.reserve(LANES);
-        let m = mask as __mmask16;
-        // SAFETY: each vector has room for LANES more elements (reserved
-        // above); each store writes LANES elements at its pointer, of which
-        // set_len covers the popcount(mask) <= LANES that the compress put
-        // first (the rest is spare capacity, written but not exposed);
-        // j, gx, gy, gz have the same length `len` (they grow together).
-        // Compress into a register, then a plain store: the compress with
-        // a memory operand (vcompressps m512{k}) is microcoded on AMD Zen 4,
-        // where these four stores took 31 % of the 250k dam break's CPU
-        // time (perf, bench/RESULTS.md).
-        unsafe {
-            let idx = _mm512_add_epi32(
-                _mm512_set1_epi32(base as i32),
-                _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
-            );
-            _mm512_storeu_si512(blk.j.as_mut_ptr().add(len) as *mut _, _mm512_maskz_compress_epi32(m, idx));
-            let f = |v: F| std::mem::transmute::<F, __m512>(v);
-            _mm512_storeu_ps(blk.gx.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gx)));
-            _mm512_storeu_ps(blk.gy.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gy)));
-            _mm512_storeu_ps(blk.gz.as_mut_ptr().add(len), _mm512_maskz_compress_ps(m, f(gz)));
-            blk.j.set_len(len + cnt);
-            blk.gx.set_len(len + cnt);
-            blk.gy.set_len(len + cnt);
-            blk.gz.set_len(len + cnt);
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES f32.
+        #[inline(always)]
+        pub unsafe fn put(&self, dst: *mut f32, v: F) {
+            use std::arch::x86_64::*;
+            unsafe {
+                let v = std::mem::transmute::<F, __m512>(v);
+                _mm512_storeu_ps(dst, _mm512_maskz_compress_ps(self.0, v));
+            }
+        }
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES u32.
+        #[inline(always)]
+        pub unsafe fn put_u32(&self, dst: *mut u32, v: &[u32; LANES]) {
+            use std::arch::x86_64::*;
+            unsafe {
+                let v = _mm512_loadu_si512(v.as_ptr() as *const _);
+                _mm512_storeu_si512(dst as *mut _, _mm512_maskz_compress_epi32(self.0, v));
+            }
         }
     }
-    #[cfg(not(target_feature = "avx512f"))]
-    {
-        let (gx, gy, gz) = (gx.to_array(), gy.to_array(), gz.to_array());
-        let mut m = mask;
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
-            blk.j.push(base + l as u32);
-            blk.gx.push(gx[l]);
-            blk.gy.push(gy[l]);
-            blk.gz.push(gz[l]);
+
+    /// AVX2: each 8-lane half through a permutation from a table of the
+    /// 256 byte masks, stored at the count of the halves before it.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2", not(target_feature = "avx512f")))]
+    pub struct Sel {
+        lo: core::arch::x86_64::__m256i,
+        hi: core::arch::x86_64::__m256i,
+        n_lo: usize,
+    }
+
+    /// For each byte mask, the indices of its set bits, in order.
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2", not(target_feature = "avx512f")))]
+    static PERM: [[u32; 8]; 256] = {
+        let mut t = [[0u32; 8]; 256];
+        let mut m = 0;
+        while m < 256 {
+            let (mut n, mut l) = (0, 0);
+            while l < 8 {
+                if m & (1 << l) != 0 {
+                    t[m][n] = l as u32;
+                    n += 1;
+                }
+                l += 1;
+            }
+            m += 1;
+        }
+        t
+    };
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2", not(target_feature = "avx512f")))]
+    impl Sel {
+        #[inline(always)]
+        pub fn new(mask: u32) -> Self {
+            use std::arch::x86_64::*;
+            let (a, b) = ((mask & 0xff) as usize, ((mask >> 8) & 0xff) as usize);
+            // SAFETY: each row of PERM is 8 u32 (32 bytes); loadu has no
+            // alignment requirement.
+            unsafe {
+                Sel {
+                    lo: _mm256_loadu_si256(PERM[a].as_ptr() as *const __m256i),
+                    hi: _mm256_loadu_si256(PERM[b].as_ptr() as *const __m256i),
+                    n_lo: a.count_ones() as usize,
+                }
+            }
+        }
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES f32.
+        #[inline(always)]
+        pub unsafe fn put(&self, dst: *mut f32, v: F) {
+            use std::arch::x86_64::*;
+            // F is two __m256 (lanes 0-7, then 8-15) without AVX-512.
+            unsafe {
+                let [a, b] = std::mem::transmute::<F, [__m256; 2]>(v);
+                _mm256_storeu_ps(dst, _mm256_permutevar8x32_ps(a, self.lo));
+                _mm256_storeu_ps(dst.add(self.n_lo), _mm256_permutevar8x32_ps(b, self.hi));
+            }
+        }
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES u32.
+        #[inline(always)]
+        pub unsafe fn put_u32(&self, dst: *mut u32, v: &[u32; LANES]) {
+            use std::arch::x86_64::*;
+            unsafe {
+                let a = _mm256_loadu_si256(v.as_ptr() as *const __m256i);
+                let b = _mm256_loadu_si256(v.as_ptr().add(8) as *const __m256i);
+                _mm256_storeu_si256(dst as *mut __m256i, _mm256_permutevar8x32_epi32(a, self.lo));
+                _mm256_storeu_si256(dst.add(self.n_lo) as *mut __m256i, _mm256_permutevar8x32_epi32(b, self.hi));
+            }
+        }
+    }
+
+    /// Elsewhere: lane by lane.
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    pub struct Sel(u32);
+
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    impl Sel {
+        #[inline(always)]
+        pub fn new(mask: u32) -> Self {
+            Sel(mask)
+        }
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES f32.
+        #[inline(always)]
+        pub unsafe fn put(&self, dst: *mut f32, v: F) {
+            self.put_u32(dst as *mut u32, &v.to_array().map(f32::to_bits));
+        }
+
+        /// # Safety
+        /// `dst` is valid for writes of LANES u32.
+        #[inline(always)]
+        pub unsafe fn put_u32(&self, dst: *mut u32, v: &[u32; LANES]) {
+            let (mut m, mut n) = (self.0, 0);
+            while m != 0 {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                unsafe { dst.add(n).write(v[l]) };
+                n += 1;
+            }
         }
     }
 }

@@ -108,3 +108,114 @@ fn pairs_at_the_support_radius() {
         }
     }
 }
+
+/// The pair lists of `build_pairs`, as they are laid out (per query: the
+/// targets within H in ascending order, then padding to whole vectors with
+/// the first target and zero weights), against an O(n^2) scalar reference,
+/// bit for bit: the same pairs in the same order, the same W and gradient
+/// bits. Random clouds, a jittered lattice (H = 2 d), a clump much denser
+/// than a cell, a NaN particle; query set = target set and a query set
+/// against another target set; both kernel shapes; with and without the
+/// dilated-cell skip.
+#[test]
+fn pair_lists_match_brute_force_bit_for_bit() {
+    use porosph_kernels::kernel::KernelShape;
+    use porosph_kernels::lanes::LANES;
+    let h = 0.05;
+    let mut rng = Lcg(11);
+    let mut clouds: Vec<Vec<[f32; 3]>> = Vec::new();
+    clouds.push((0..2500).map(|_| [0.4 * rng.next(), 0.4 * rng.next() - 0.2, 0.4 * rng.next()]).collect());
+    let mut lattice = Vec::new();
+    for k in 0..14 {
+        for j in 0..14 {
+            for i in 0..14 {
+                let d = h / 2.0;
+                let jit = |r: f32| 0.3 * d * (r - 0.5);
+                lattice.push([
+                    -0.1 + i as f32 * d + jit(rng.next()),
+                    j as f32 * d + jit(rng.next()),
+                    0.3 + k as f32 * d + jit(rng.next()),
+                ]);
+            }
+        }
+    }
+    clouds.push(lattice);
+    let mut clump: Vec<[f32; 3]> =
+        (0..600).map(|_| [0.02 * rng.next(), 0.02 * rng.next(), 0.02 * rng.next()]).collect();
+    clump.extend((0..900).map(|_| [0.3 * rng.next() - 0.1, 0.3 * rng.next() - 0.1, 0.3 * rng.next() - 0.1]));
+    clump.push([f32::NAN, 0.01, 0.01]);
+    clouds.push(clump);
+    let targets: Vec<[f32; 3]> =
+        (0..1800).map(|_| [0.5 * rng.next() - 0.05, 0.5 * rng.next() - 0.2, 0.5 * rng.next()]).collect();
+    let (tx, ty, tz, tg) = sorted(&targets, h);
+    for shape in [KernelShape::CubicSpline, KernelShape::WendlandC2] {
+        let kernel = Kernel::with_shape(shape, h);
+        for cloud in &clouds {
+            let (x, y, z, g) = sorted(cloud, h);
+            let q = Vel { x: &x, y: &y, z: &z };
+            let other = Vel { x: &tx, y: &ty, z: &tz };
+            let mut near = CellGrid::default();
+            near.build(&tg.dilated_keys(), h);
+            for (t, grid, near) in [(q, &g, None), (other, &tg, None), (other, &tg, Some(&near))] {
+                let mut l = PairLists::default();
+                build_pairs(&mut l, q, t, grid, near, &kernel);
+                let mut got = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+                for b in l.used() {
+                    for qi in 0..b.start.len() - 1 {
+                        let r = b.range(qi);
+                        got.0.push(r.len());
+                        got.1.extend_from_slice(&b.j[r.clone()]);
+                        got.2.extend(b.w[r.clone()].iter().map(|v| v.to_bits()));
+                        got.3.extend(b.gx[r.clone()].iter().map(|v| v.to_bits()));
+                        got.4.extend(b.gy[r.clone()].iter().map(|v| v.to_bits()));
+                        got.5.extend(b.gz[r].iter().map(|v| v.to_bits()));
+                    }
+                }
+                let mut want = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+                for i in 0..q.len() {
+                    let first = want.1.len();
+                    for j in 0..t.len() {
+                        let (dx, dy, dz) = (q.x[i] - t.x[j], q.y[i] - t.y[j], q.z[i] - t.z[j]);
+                        let r2 = dx * dx + dy * dy + dz * dz;
+                        if r2 < h * h {
+                            let r = r2.sqrt();
+                            let (w, gr) = match shape {
+                                KernelShape::CubicSpline => {
+                                    (kernel.cubic_spline_w(r), kernel.cubic_spline_grad_over_r(r))
+                                }
+                                KernelShape::WendlandC2 => (kernel.wendland_w(r), kernel.wendland_grad_over_r(r)),
+                            };
+                            want.1.push(j as u32);
+                            want.2.push(w.to_bits());
+                            want.3.push((gr * dx).to_bits());
+                            want.4.push((gr * dy).to_bits());
+                            want.5.push((gr * dz).to_bits());
+                        }
+                    }
+                    // Padding: W and the gradient as for r = 0, times 0
+                    // (a negative W'/r at 0 gives -0.0 gradient bits).
+                    let pad = want.1.get(first).copied().unwrap_or(0);
+                    let (w0, g0) = match shape {
+                        KernelShape::CubicSpline => (kernel.cubic_spline_w(0.0), kernel.cubic_spline_grad_over_r(0.0)),
+                        KernelShape::WendlandC2 => (kernel.wendland_w(0.0), kernel.wendland_grad_over_r(0.0)),
+                    };
+                    let (w0, g0) = (w0 * 0.0, g0 * 0.0 * 0.0);
+                    let end = first + (want.1.len() - first).next_multiple_of(LANES);
+                    want.1.resize(end, pad);
+                    want.2.resize(end, w0.to_bits());
+                    want.3.resize(end, g0.to_bits());
+                    want.4.resize(end, g0.to_bits());
+                    want.5.resize(end, g0.to_bits());
+                    want.0.push(want.1.len() - first);
+                }
+                assert_eq!(got.0, want.0, "pairs per query ({shape:?}, {} queries)", q.len());
+                assert_eq!(got.1, want.1, "targets ({shape:?})");
+                assert_eq!(got.2, want.2, "W bits ({shape:?})");
+                assert_eq!(got.3, want.3, "grad x bits ({shape:?})");
+                assert_eq!(got.4, want.4, "grad y bits ({shape:?})");
+                assert_eq!(got.5, want.5, "grad z bits ({shape:?})");
+                assert!(got.1.len() > 4 * q.len(), "the cloud has pairs");
+            }
+        }
+    }
+}
