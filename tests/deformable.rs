@@ -708,3 +708,76 @@ fn plate_oscillates_slower_in_water_by_its_added_mass() {
     );
     assert!((ratio / reference - 1.0).abs() < 0.05, "ratio {ratio:.3} against {reference}");
 }
+
+/// Squeeze release rate (issue 34 item 3), the CI squeeze's set-up: the
+/// mean saturation S(t) of the held sponge against P-Eq. 9's equilibrium
+/// at its strain, S_eq = (p_0k + B tr(eps)) / p_0, every 0.05 s of the
+/// hold, and the time constant of S - S_eq.
+///
+/// Reference, Darcy's law (P-Eqs. 1, 9, 15-19): the absorbed volume per
+/// solid volume phi moves by the Darcy flux q = -(k / mu) grad p^pore with
+/// p^pore = p_0 phi - B tr(eps), so at a held strain
+/// d phi / dt = (p_0 k / mu) lap phi, a diffusion with c = p_0 k / mu =
+/// 5e4 x 1e-7 / 1 = 5e-3 m^2/s. The sponge (0.12 x 0.12 m across, plate on
+/// top, clamped base on the floor) drains through its four sides to the
+/// pool, where p^pore = p_0k: the slowest mode cos(pi x / L) cos(pi z / L)
+/// decays at c 2 (pi / L)^2, tau = L^2 / (2 pi^2 c) = 0.146 s at L =
+/// 0.12 m. Criterion (the issue's): the fitted tau within 25 % of it.
+///
+/// Measured 2026-12-05 (commit after 588e018, `cargo test --release --test
+/// deformable squeeze_release_time_constant -- --ignored --nocapture`, 32
+/// s): it fails. The excess S - S_eq is +0.075 when the plate stops (1.6 s),
+/// +0.058 at 2.0 s, +0.038 at 3.0 s, +0.026 at 5.0 s: tau = 3.25 s over the
+/// hold (about 1.6 s in its first 0.4 s), 22x the Darcy estimate; the mean
+/// P-Eq. 9 residual at 5 s is +5.2 % (the CI squeeze's bound is 10 %).
+/// Probes (scene keys changed in a copy, not committed): permeability x10
+/// (1e-6) takes the excess from +0.032 at 1.5 s to +0.007 at 2.0 s (the
+/// Darcy part speeds up as it should) but the sponge's strain then drifts
+/// (S_eq 0.42 at 5 s); absorption ratio K x10 starts lower (+0.041 at 1.6
+/// s) and still decays with tau = 2.9 s. So the slow tail is neither the
+/// bulk Darcy flux nor the surface exchange rate. Not yet measured, the
+/// next suspect: `porous::take_inside` (README, porous solids), which moves
+/// the outer share of the absorbed phase back inside where a particle's
+/// neighbourhood is nearly all solid, against the emission that turned it
+/// outer.
+#[test]
+#[ignore = "fails (issue 34 item 3 open): tau 3.25 s against Darcy's 0.146 s; 5 s at d = 2 cm, about 1 min"]
+fn squeeze_release_time_constant() {
+    let d = 0.02;
+    let hold_end = 5.0;
+    let solids = soft_box("sponge", [0.14, 0.0, 0.1], [0.26, 0.12, 0.22], 600.0)
+        + "fixed = { box = { min = [0.13, -0.01, 0.09], max = [0.27, 0.02, 0.23] } }\n"
+        + &porous("water", 7.5e-4, false)
+        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.12, 0.06], max = [0.3, 0.16, 0.26] }\n\
+           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
+           fixed = { box = { min = [0.09, 0.11, 0.05], max = [0.31, 0.17, 0.27] } }\n"
+        + "motion = [{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }]\n";
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.3, 0.32], 0.1, 1.0, &solids)));
+    let sponge = body(&sim, 0);
+    let mut series = Vec::new();
+    let mut t = 1.0;
+    while t <= hold_end + 1e-9 {
+        run_until(&mut sim, t, |_| {});
+        let s = mean(sponge.iter().map(|&i| sim.solids.saturation[i]));
+        let strain = mean(sponge.iter().map(|&i| sim.solids.strain_trace[i]));
+        let eq = (2.5e4 + 4.9e4 * strain) / 5e4;
+        println!("t {t:.2} s: saturation {s:.4}, P-Eq. 9 equilibrium {eq:.4}, excess {:+.4}", s - eq);
+        series.push((t, s - eq));
+        t += 0.05;
+    }
+    // Time constant from the excess after the plate stops (t >= 1.5 s):
+    // least squares of ln(excess) over the points while it is positive
+    // and above a tenth of its value at 1.5 s.
+    let start = series.iter().position(|&(t, _)| t >= 1.5 - 1e-9).expect("1.5 s");
+    let e0 = series[start].1;
+    let pts: Vec<(f64, f64)> =
+        series[start..].iter().take_while(|&&(_, e)| e > 0.1 * e0).map(|&(t, e)| (t, e.ln())).collect();
+    let n = pts.len() as f64;
+    let (st, se) = pts.iter().fold((0.0, 0.0), |(a, b), &(t, e)| (a + t, b + e));
+    let (mt, me) = (st / n, se / n);
+    let slope = pts.iter().map(|&(t, e)| (t - mt) * (e - me)).sum::<f64>()
+        / pts.iter().map(|&(t, _)| (t - mt).powi(2)).sum::<f64>();
+    let tau = -1.0 / slope;
+    println!("excess at 1.5 s {e0:+.4}; fit over {} points: tau = {tau:.3} s (Darcy: 0.146 s)", pts.len());
+    assert!((tau / 0.146 - 1.0).abs() <= 0.25, "release time constant {tau} s against Darcy's 0.146 s");
+}
