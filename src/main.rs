@@ -106,6 +106,25 @@ enum Command {
         #[command(flatten)]
         args: RunArgs,
     },
+    /// Dry run of a distributed run (issue 19), no MPI needed: set up the
+    /// scene (as `run` does, without stepping), split its particles among
+    /// P ranks as the distributed run will (contiguous ranges of the Morton
+    /// order, cut on whole cache blocks) and print per rank the owned and
+    /// halo particles and the halo bytes per step, and the imbalance.
+    Partition {
+        /// Scene file or built-in scene name (default: the built-in wave_block).
+        scene: Option<String>,
+        /// Number of ranks, 1 to 4096 (at most the scene's cache blocks of fluid).
+        #[arg(long, value_name = "P")]
+        ranks: usize,
+        /// Jacobi sweeps per step for the halo bytes (a run's stats.csv
+        /// `iterations` column gives its own).
+        #[arg(long, value_name = "N", default_value_t = 10)]
+        sweeps: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// List the built-in scenes and the example scenes in ./scenes.
     Scenes,
     /// Print the JSON Schema of scene files (the scene reference, for
@@ -725,11 +744,44 @@ fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> 
     Ok(())
 }
 
+/// `porosph partition`: the partitioner's table for `scene` on `ranks` ranks.
+fn partition_command(scene: Option<String>, ranks: usize, sweeps: u32, threads: Option<usize>) -> Result<(), String> {
+    use porosph::distributed::{partition, report, traffic::HaloModel, MAX_RANKS};
+    if ranks == 0 || ranks > MAX_RANKS {
+        return Err(format!("--ranks must be 1 to {MAX_RANKS}, got {ranks}"));
+    }
+    if threads == Some(0) {
+        return Err("--threads must be at least 1".to_string());
+    }
+    let scene = load_scene(scene.as_deref())?;
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        b = b.num_threads(t);
+    }
+    let pool = b.build().map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
+    pool.install(|| {
+        let origin = scene.origin.clone();
+        let sim = Simulation::new(scene);
+        let (f, w, s) = (&sim.fluid, &sim.walls, &sim.solids);
+        let points = [
+            porosph_kernels::soa::Vel { x: &f.x, y: &f.y, z: &f.z },
+            porosph_kernels::soa::Vel { x: &w.x, y: &w.y, z: &w.z },
+            porosph_kernels::soa::Vel { x: &s.x, y: &s.y, z: &s.z },
+        ];
+        let part = partition(points, sim.params.kernel.support, ranks).map_err(|e| format!("{origin}: {e}"))?;
+        let model = HaloModel::new(sim.params.phases(), sim.params.porous());
+        println!("porosph partition: {origin}: {} fluid + {} wall + {} solid particles", f.len(), w.len(), s.len());
+        print!("{}", report::table(&part, &model, sweeps));
+        Ok(())
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run { scene, out, args } => run_command(scene, out, args),
         Command::Resume { checkpoint, out, args } => resume_command(checkpoint, out, args),
+        Command::Partition { scene, ranks, sweeps, threads } => partition_command(scene, ranks, sweeps, threads),
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {
