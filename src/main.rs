@@ -121,6 +121,11 @@ enum Command {
         /// `iterations` column gives its own).
         #[arg(long, value_name = "N", default_value_t = 10)]
         sweeps: u32,
+        /// Particle spacing to sample the scene at instead of its own, m
+        /// (the same scene at another resolution; the scene is validated
+        /// again at it).
+        #[arg(long, value_name = "METRES")]
+        spacing: Option<f32>,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -744,8 +749,29 @@ fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> 
     Ok(())
 }
 
+/// `scene` sampled at particle spacing `d` instead of its own: its text
+/// with `simulation.particle_spacing` replaced, parsed and validated again.
+fn with_spacing(scene: &Scene, d: f32) -> Result<Scene, String> {
+    if !(d.is_finite() && d > 0.0) {
+        return Err(format!("--spacing must be > 0 m, got {d}"));
+    }
+    let mut table: toml::Table = scene.text.parse().map_err(|e| format!("{}: {e}", scene.origin))?;
+    if let Some(toml::Value::Table(sim)) = table.get_mut("simulation") {
+        sim.insert("particle_spacing".into(), toml::Value::Float(f64::from(d)));
+    }
+    let text = toml::to_string(&table).map_err(|e| format!("{}: {e}", scene.origin))?;
+    let origin = format!("{} at --spacing {d}", scene.origin);
+    Scene::from_toml_str(&text, &origin).map_err(|e| e.to_string())
+}
+
 /// `porosph partition`: the partitioner's table for `scene` on `ranks` ranks.
-fn partition_command(scene: Option<String>, ranks: usize, sweeps: u32, threads: Option<usize>) -> Result<(), String> {
+fn partition_command(
+    scene: Option<String>,
+    ranks: usize,
+    sweeps: u32,
+    spacing: Option<f32>,
+    threads: Option<usize>,
+) -> Result<(), String> {
     use porosph::distributed::{partition, report, traffic::HaloModel, MAX_RANKS};
     if ranks == 0 || ranks > MAX_RANKS {
         return Err(format!("--ranks must be 1 to {MAX_RANKS}, got {ranks}"));
@@ -753,7 +779,10 @@ fn partition_command(scene: Option<String>, ranks: usize, sweeps: u32, threads: 
     if threads == Some(0) {
         return Err("--threads must be at least 1".to_string());
     }
-    let scene = load_scene(scene.as_deref())?;
+    let mut scene = load_scene(scene.as_deref())?;
+    if let Some(d) = spacing {
+        scene = with_spacing(&scene, d)?;
+    }
     let mut b = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
         b = b.num_threads(t);
@@ -781,7 +810,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run { scene, out, args } => run_command(scene, out, args),
         Command::Resume { checkpoint, out, args } => resume_command(checkpoint, out, args),
-        Command::Partition { scene, ranks, sweeps, threads } => partition_command(scene, ranks, sweeps, threads),
+        Command::Partition { scene, ranks, sweeps, spacing, threads } => {
+            partition_command(scene, ranks, sweeps, spacing, threads)
+        }
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {

@@ -167,6 +167,15 @@ fn the_command_prints_the_table_for_the_default_scene_and_refuses_zero_ranks() {
     assert!(out.contains("imbalance (max/mean owned): "), "{out}");
     assert!(out.contains("halo fraction"), "{out}");
 
+    // The same scene at another spacing: 0.2 x 0.4 x 0.2 m of water at 2 cm.
+    let r = porosph(&["partition", "dam_break", "--ranks", "2", "--spacing", "0.02", "--threads", "1"]);
+    let out = text(&r.stdout);
+    assert!(r.status.success(), "{}{}", out, text(&r.stderr));
+    assert!(out.contains("<built-in dam_break> at --spacing 0.02: 2000 fluid + "), "{out}");
+    let r = porosph(&["partition", "--ranks", "2", "--spacing", "0"]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(text(&r.stderr).contains("--spacing must be > 0 m, got 0"), "{}", text(&r.stderr));
+
     let r = porosph(&["partition", "--ranks", "0"]);
     assert_eq!(r.status.code(), Some(1));
     assert!(text(&r.stderr).contains("porosph: error: --ranks must be 1 to 4096, got 0"), "{}", text(&r.stderr));
