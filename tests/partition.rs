@@ -57,17 +57,45 @@ fn every_particle_is_owned_once_on_whole_blocks_within_one_block_of_the_mean() {
                 next = rp.owned[k as usize].end;
             }
             assert_eq!(next, n, "{ranks} ranks, {k:?}");
-            // Every kind by the same keys: a rank owns keys from its first
-            // to the next rank's first.
+            // Key order within each rank; the fluid's ranges are runs of
+            // keys from the rank's first to the next rank's first.
             let keys = &part.keys[k as usize];
-            assert!(keys.windows(2).all(|w| w[0] <= w[1]));
             for (r, rp) in part.ranks.iter().enumerate() {
-                for i in rp.owned[k as usize].clone() {
-                    assert!(keys[i] >= rp.first_key, "{ranks} ranks, rank {r}, {k:?} {i}");
+                let own = &keys[rp.owned[k as usize].clone()];
+                assert!(own.windows(2).all(|w| w[0] <= w[1]), "{ranks} ranks, rank {r}, {k:?}");
+                if k != Kind::Fluid {
+                    continue;
+                }
+                for &key in own {
+                    assert!(key >= rp.first_key, "{ranks} ranks, rank {r}");
                     if let Some(next) = part.ranks.get(r + 1) {
-                        let last_cell_split = k == Kind::Fluid && keys[i] == next.first_key;
-                        assert!(keys[i] < next.first_key || last_cell_split, "{ranks} ranks, rank {r}, {k:?} {i}");
+                        assert!(key <= next.first_key, "{ranks} ranks, rank {r}");
                     }
+                }
+            }
+        }
+        // A wall or solid particle belongs to the owner of its nearest
+        // fluid particle within H, else to the last rank whose first key is
+        // at most its own.
+        if ranks == 4 {
+            let h2 = sim.params.kernel.support * sim.params.kernel.support;
+            let fluid = sorted_positions(&sim, &part, Kind::Fluid);
+            let owner_of = |k: Kind, i: usize| part.ranks.iter().position(|r| r.owned[k as usize].contains(&i));
+            for k in [Kind::Wall, Kind::Solid] {
+                for (i, x) in sorted_positions(&sim, &part, k).into_iter().enumerate() {
+                    let mut best: Option<(f32, usize)> = None;
+                    for (j, f) in fluid.iter().enumerate() {
+                        let (dx, dy, dz) = (x[0] - f[0], x[1] - f[1], x[2] - f[2]);
+                        let d2 = dx * dx + dy * dy + dz * dz;
+                        if d2 < h2 && best.is_none_or(|(b, _)| d2 < b) {
+                            best = Some((d2, j));
+                        }
+                    }
+                    let want = match best {
+                        Some((_, j)) => owner_of(Kind::Fluid, j),
+                        None => part.ranks.iter().rposition(|r| r.first_key <= part.keys[k as usize][i]),
+                    };
+                    assert_eq!(owner_of(k, i), want, "{k:?} {i} at {x:?}");
                 }
             }
         }
@@ -88,6 +116,9 @@ fn every_particle_is_owned_once_on_whole_blocks_within_one_block_of_the_mean() {
     }
 }
 
+/// A particle's index in its kind's order and its rank, in one partition.
+type IndexAndOwner = (u32, u32);
+
 #[test]
 fn the_halo_is_every_other_ranks_particle_within_h_brute_force() {
     let sim = wave_block();
@@ -95,34 +126,48 @@ fn the_halo_is_every_other_ranks_particle_within_h_brute_force() {
     let h2 = h * h;
     let all_ranks = [2usize, 3, 4];
     let parts: Vec<Partition> = all_ranks.iter().map(|&p| split(&sim, p).expect("partition")).collect();
-    // Every particle: kind, index in its kind's sorted order, position, and
-    // its owner under each partition.
-    let mut pts: Vec<(usize, u32, [f32; 3], Vec<u32>)> = Vec::new();
+    // Every particle: kind, position, and under each partition its index
+    // in its kind's order and its owner (the order of walls and solids is
+    // rank by rank, so it depends on the partition).
+    let mut pts: Vec<(usize, [f32; 3], Vec<IndexAndOwner>)> = Vec::new();
     for k in Kind::ALL {
+        let inverse: Vec<Vec<u32>> = parts
+            .iter()
+            .map(|p| {
+                let mut inv = vec![0u32; p.len(k)];
+                for (new, &old) in p.order[k as usize].iter().enumerate() {
+                    inv[old as usize] = new as u32;
+                }
+                inv
+            })
+            .collect();
         let pos = sorted_positions(&sim, &parts[0], k);
         for (i, x) in pos.into_iter().enumerate() {
-            let owners = parts
+            let old = parts[0].order[k as usize][i] as usize;
+            let at = parts
                 .iter()
-                .map(|p| p.ranks.iter().position(|r| r.owned[k as usize].contains(&i)).expect("owned") as u32)
+                .zip(&inverse)
+                .map(|(p, inv)| {
+                    let new = inv[old] as usize;
+                    let r = p.ranks.iter().position(|r| r.owned[k as usize].contains(&new)).expect("owned");
+                    (new as u32, r as u32)
+                })
                 .collect();
-            pts.push((k as usize, i as u32, x, owners));
+            pts.push((k as usize, x, at));
         }
-    }
-    for p in &parts[1..] {
-        assert_eq!(p.order, parts[0].order, "the order does not depend on the rank count");
     }
     let mut want: Vec<Vec<[Vec<u32>; 3]>> = all_ranks.iter().map(|&p| vec![Default::default(); p]).collect();
     for a in 0..pts.len() {
-        let (ka, ia, xa, oa) = &pts[a];
-        for (kb, ib, xb, ob) in &pts[a + 1..] {
+        let (ka, xa, at_a) = &pts[a];
+        for (kb, xb, at_b) in &pts[a + 1..] {
             let (dx, dy, dz) = (xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]);
             if dx * dx + dy * dy + dz * dz >= h2 {
                 continue;
             }
-            for (w, (&ra, &rb)) in want.iter_mut().zip(oa.iter().zip(ob)) {
+            for (w, (&(ia, ra), &(ib, rb))) in want.iter_mut().zip(at_a.iter().zip(at_b)) {
                 if ra != rb {
-                    w[ra as usize][*kb].push(*ib);
-                    w[rb as usize][*ka].push(*ia);
+                    w[ra as usize][*kb].push(ib);
+                    w[rb as usize][*ka].push(ia);
                 }
             }
         }

@@ -15,13 +15,20 @@
 //!   [`BLOCK`] particles more than the mean (the cut balances by particle
 //!   count: every fluid particle costs about the same in every pass).
 //! - Rank r's first primary particle gives its first Morton key `lo_r`
-//!   (`lo_0 = 0`). Every other kind is assigned by the same keys: a wall or
-//!   solid particle of key k belongs to the last rank with `lo_r <= k`, so
-//!   a rank owns one region of space (a run of cells along the curve) for
-//!   every kind, and a contiguous range of every kind's sorted order. Only
-//!   the cell at a cut may have primary particles on both sides of it (the
-//!   cut is on a block boundary, not a cell boundary); its walls and
-//!   solids go to the later rank. A solid body may span ranks.
+//!   (`lo_0 = 0`). A wall or solid particle with a primary particle closer
+//!   than H belongs to the owner of the nearest one (of equal distances the
+//!   first in key order): a wall row or solid row is owned where the fluid
+//!   it couples to is. Any other (far from every primary particle) belongs
+//!   to the last rank with `lo_r <= k` for its key k, so a rank owns one
+//!   run of cells along the curve of it. Not by key range alone: the
+//!   keys put everything at a negative coordinate before everything at a
+//!   positive one (the grid's origin offset), so the walls below and
+//!   behind the fluid all went to rank 0, which then had the whole floor's
+//!   fluid in its halo (the 8 M dam break at 1,024 ranks: 988,216 walls
+//!   and a fluid halo of 128,373 for 8,192 owned, bench/RESULTS.md).
+//! - The global order of a kind is rank by rank, key order within a rank
+//!   (for the primary kind: its key order), so a rank owns a contiguous
+//!   range of every kind's order. A solid body may span ranks.
 //!
 //! The halo of rank r: every particle (of any kind) owned by another rank
 //! closer than H (`|x_i - x_j| < H`, the half-open support of the pair
@@ -130,10 +137,11 @@ pub struct Partition {
     pub support: f32,
     /// The kind whose order is cut on whole blocks.
     pub primary: Kind,
-    /// Each kind's global order: `order[k][new] = old` (the index in the
-    /// positions given to [`partition`]).
+    /// Each kind's global order (rank by rank, key order within a rank):
+    /// `order[k][new] = old` (the index in the positions given to
+    /// [`partition`]).
     pub order: [Vec<u32>; 3],
-    /// Each kind's Morton keys in its sorted order.
+    /// Each kind's Morton keys in its global order.
     pub keys: [Vec<u64>; 3],
     /// One entry per rank.
     pub ranks: Vec<RankPart>,
@@ -197,7 +205,7 @@ fn sort(p: Vel, support: f32) -> Sorted {
 /// Splits the fluid, wall and solid particles at `points` ([`Kind`]
 /// order; positions in any order, m) among `ranks` ranks with halos of
 /// `support` = H (module doc). Runs once: correctness before speed, but
-/// O(n x neighbours) in all, in parallel over the ranks.
+/// O(n x neighbours) in all, in parallel.
 pub fn partition(points: [Vel; 3], support: f32, ranks: usize) -> Result<Partition, PartitionError> {
     if ranks == 0 {
         return Err(PartitionError::NoRanks);
@@ -221,50 +229,109 @@ pub fn partition(points: [Vel; 3], support: f32, ranks: usize) -> Result<Partiti
     let start = |r: usize| if r == ranks { n } else { (r * nb / ranks * BLOCK).min(n) };
     let pk = &sorted[primary as usize].keys;
     let first_key: Vec<u64> = (0..ranks).map(|r| if r == 0 { 0 } else { pk[start(r)] }).collect();
-    let owned_range = |k: Kind, r: usize| -> Range<usize> {
-        if k == primary {
-            return start(r)..start(r + 1);
-        }
-        let keys = &sorted[k as usize].keys;
-        let at = |r: usize| if r == ranks { keys.len() } else { keys.partition_point(|&key| key < first_key[r]) };
-        at(r)..at(r + 1)
-    };
-    let mut parts: Vec<RankPart> = (0..ranks)
-        .map(|r| RankPart {
-            first_key: first_key[r],
-            owned: Kind::ALL.map(|k| owned_range(k, r)),
-            halo: Default::default(),
-        })
-        .collect();
-    // The owner of every particle, in each kind's sorted order.
+    // The owner of every particle, in each kind's key order.
     let mut owner: [Vec<u32>; 3] = Kind::ALL.map(|k| vec![0u32; sorted[k as usize].keys.len()]);
-    for (r, part) in parts.iter().enumerate() {
-        for k in Kind::ALL {
-            owner[k as usize][part.owned[k as usize].clone()].fill(r as u32);
-        }
+    for r in 0..ranks {
+        owner[primary as usize][start(r)..start(r + 1)].fill(r as u32);
     }
-
-    if ranks > 1 {
-        parts.par_iter_mut().enumerate().for_each(|(r, part)| {
-            part.halo = halo(r as u32, &part.owned, &sorted, &owner, support);
+    let (po, rest) = {
+        let [a, b, c] = &mut owner;
+        match primary {
+            Kind::Fluid => (&*a, [(Kind::Wall, b), (Kind::Solid, c)]),
+            Kind::Wall => (&*b, [(Kind::Fluid, a), (Kind::Solid, c)]),
+            Kind::Solid => (&*c, [(Kind::Fluid, a), (Kind::Wall, b)]),
+        }
+    };
+    for (k, own) in rest {
+        let p = &sorted[primary as usize];
+        let q = &sorted[k as usize];
+        own.par_iter_mut().enumerate().for_each(|(i, o)| {
+            *o = match nearest(p, q.x[i], q.y[i], q.z[i], support) {
+                Some(j) => po[j],
+                None => (first_key.partition_point(|&f| f <= q.keys[i]) - 1) as u32,
+            };
         });
     }
-    Ok(Partition {
-        support,
-        primary,
-        order: sorted.each_ref().map(|s| s.order.clone()),
-        keys: sorted.map(|s| s.keys),
-        ranks: parts,
-    })
+    // Each rank's members of each kind, in key order.
+    let members: [Vec<Vec<u32>>; 3] = owner.each_ref().map(|own| {
+        let mut m = vec![Vec::new(); ranks];
+        for (i, &o) in own.iter().enumerate() {
+            m[o as usize].push(i as u32);
+        }
+        m
+    });
+    let halos: Vec<[Vec<u32>; 3]> = (0..ranks)
+        .into_par_iter()
+        .map(|r| {
+            if ranks == 1 {
+                return Default::default();
+            }
+            let mine = [&members[0][r][..], &members[1][r][..], &members[2][r][..]];
+            halo(r as u32, mine, &sorted, &owner, support)
+        })
+        .collect();
+    // The global order of each kind: rank by rank, key order within a
+    // rank (the primary's key order itself).
+    let mut order: [Vec<u32>; 3] = Default::default();
+    let mut keys: [Vec<u64>; 3] = Default::default();
+    let mut new_index: [Vec<u32>; 3] = Default::default();
+    let mut owned: Vec<[Range<usize>; 3]> = vec![Default::default(); ranks];
+    for k in Kind::ALL {
+        let (ki, s) = (k as usize, &sorted[k as usize]);
+        new_index[ki] = vec![0; s.keys.len()];
+        for (r, m) in members[ki].iter().enumerate() {
+            let lo = order[ki].len();
+            for &i in m {
+                new_index[ki][i as usize] = order[ki].len() as u32;
+                order[ki].push(s.order[i as usize]);
+                keys[ki].push(s.keys[i as usize]);
+            }
+            owned[r][ki] = lo..order[ki].len();
+        }
+    }
+    let parts = halos
+        .into_iter()
+        .zip(owned)
+        .zip(first_key)
+        .map(|((h, owned), first_key)| {
+            let halo = Kind::ALL.map(|k| {
+                let mut v: Vec<u32> = h[k as usize].iter().map(|&i| new_index[k as usize][i as usize]).collect();
+                v.sort_unstable();
+                v
+            });
+            RankPart { first_key, owned, halo }
+        })
+        .collect();
+    Ok(Partition { support, primary, order, keys, ranks: parts })
+}
+
+/// The particle of `p` nearest to (x, y, z) closer than H, if any (of
+/// equal distances the first in key order).
+fn nearest(p: &Sorted, x: f32, y: f32, z: f32, support: f32) -> Option<usize> {
+    let mut ranges = [(0u32, 0u32); 27];
+    let nr = p.grid.neighbor_ranges(cell_of(x, y, z, p.grid.inv_cell), &mut ranges);
+    ranges[..nr].sort_unstable();
+    let mut best: Option<(f32, usize)> = None;
+    for &(s, e) in &ranges[..nr] {
+        for j in s as usize..e as usize {
+            let (dx, dy, dz) = (x - p.x[j], y - p.y[j], z - p.z[j]);
+            let d2 = dx * dx + dy * dy + dz * dz;
+            if d2 < support * support && best.is_none_or(|(b, _)| d2 < b) {
+                best = Some((d2, j));
+            }
+        }
+    }
+    best.map(|(_, j)| j)
 }
 
 /// The halo of rank `r` that owns `owned` (module doc).
-fn halo(r: u32, owned: &[Range<usize>; 3], sorted: &[Sorted; 3], owner: &[Vec<u32>; 3], support: f32) -> [Vec<u32>; 3] {
+fn halo(r: u32, owned: [&[u32]; 3], sorted: &[Sorted; 3], owner: &[Vec<u32>; 3], support: f32) -> [Vec<u32>; 3] {
     let h2 = support * support;
     let mut found: [Vec<u32>; 3] = Default::default();
     let mut ranges = [(0u32, 0u32); 27];
     for (q, mine) in sorted.iter().zip(owned) {
-        for i in mine.clone() {
+        for &i in mine {
+            let i = i as usize;
             let (xi, yi, zi) = (q.x[i], q.y[i], q.z[i]);
             let c = cell_of(xi, yi, zi, q.grid.inv_cell);
             for ((t, own), out) in sorted.iter().zip(owner).zip(found.iter_mut()) {
