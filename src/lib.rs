@@ -7,6 +7,7 @@
 
 pub mod backend;
 pub mod builtin;
+pub mod distributed;
 pub mod io;
 pub mod pipeline;
 pub mod plot;

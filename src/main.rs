@@ -106,6 +106,30 @@ enum Command {
         #[command(flatten)]
         args: RunArgs,
     },
+    /// Dry run of a distributed run (issue 19), no MPI needed: set up the
+    /// scene (as `run` does, without stepping), split its particles among
+    /// P ranks as the distributed run will (contiguous ranges of the Morton
+    /// order, cut on whole cache blocks) and print per rank the owned and
+    /// halo particles and the halo bytes per step, and the imbalance.
+    Partition {
+        /// Scene file or built-in scene name (default: the built-in wave_block).
+        scene: Option<String>,
+        /// Number of ranks, 1 to 4096 (at most the scene's cache blocks of fluid).
+        #[arg(long, value_name = "P")]
+        ranks: usize,
+        /// Jacobi sweeps per step for the halo bytes (a run's stats.csv
+        /// `iterations` column gives its own).
+        #[arg(long, value_name = "N", default_value_t = 10)]
+        sweeps: u32,
+        /// Particle spacing to sample the scene at instead of its own, m
+        /// (the same scene at another resolution; the scene is validated
+        /// again at it).
+        #[arg(long, value_name = "METRES")]
+        spacing: Option<f32>,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// List the built-in scenes and the example scenes in ./scenes.
     Scenes,
     /// Print the JSON Schema of scene files (the scene reference, for
@@ -725,11 +749,70 @@ fn plot_command(input: &Path, out: Option<PathBuf>, width: u32, height: u32) -> 
     Ok(())
 }
 
+/// `scene` sampled at particle spacing `d` instead of its own: its text
+/// with `simulation.particle_spacing` replaced, parsed and validated again.
+fn with_spacing(scene: &Scene, d: f32) -> Result<Scene, String> {
+    if !(d.is_finite() && d > 0.0) {
+        return Err(format!("--spacing must be > 0 m, got {d}"));
+    }
+    let mut table: toml::Table = scene.text.parse().map_err(|e| format!("{}: {e}", scene.origin))?;
+    if let Some(toml::Value::Table(sim)) = table.get_mut("simulation") {
+        sim.insert("particle_spacing".into(), toml::Value::Float(f64::from(d)));
+    }
+    let text = toml::to_string(&table).map_err(|e| format!("{}: {e}", scene.origin))?;
+    let origin = format!("{} at --spacing {d}", scene.origin);
+    Scene::from_toml_str(&text, &origin).map_err(|e| e.to_string())
+}
+
+/// `porosph partition`: the partitioner's table for `scene` on `ranks` ranks.
+fn partition_command(
+    scene: Option<String>,
+    ranks: usize,
+    sweeps: u32,
+    spacing: Option<f32>,
+    threads: Option<usize>,
+) -> Result<(), String> {
+    use porosph::distributed::{partition, report, traffic::HaloModel, MAX_RANKS};
+    if ranks == 0 || ranks > MAX_RANKS {
+        return Err(format!("--ranks must be 1 to {MAX_RANKS}, got {ranks}"));
+    }
+    if threads == Some(0) {
+        return Err("--threads must be at least 1".to_string());
+    }
+    let mut scene = load_scene(scene.as_deref())?;
+    if let Some(d) = spacing {
+        scene = with_spacing(&scene, d)?;
+    }
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        b = b.num_threads(t);
+    }
+    let pool = b.build().map_err(|e| format!("cannot start {threads:?} threads: {e}"))?;
+    pool.install(|| {
+        let origin = scene.origin.clone();
+        let sim = Simulation::new(scene);
+        let (f, w, s) = (&sim.fluid, &sim.walls, &sim.solids);
+        let points = [
+            porosph_kernels::soa::Vel { x: &f.x, y: &f.y, z: &f.z },
+            porosph_kernels::soa::Vel { x: &w.x, y: &w.y, z: &w.z },
+            porosph_kernels::soa::Vel { x: &s.x, y: &s.y, z: &s.z },
+        ];
+        let part = partition(points, sim.params.kernel.support, ranks).map_err(|e| format!("{origin}: {e}"))?;
+        let model = HaloModel::new(sim.params.phases(), sim.params.porous());
+        println!("porosph partition: {origin}: {} fluid + {} wall + {} solid particles", f.len(), w.len(), s.len());
+        print!("{}", report::table(&part, &model, sweeps));
+        Ok(())
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run { scene, out, args } => run_command(scene, out, args),
         Command::Resume { checkpoint, out, args } => resume_command(checkpoint, out, args),
+        Command::Partition { scene, ranks, sweeps, spacing, threads } => {
+            partition_command(scene, ranks, sweeps, spacing, threads)
+        }
         Command::Scenes => {
             println!("built-in scenes (porosph run NAME):");
             for b in builtin::SCENES {
