@@ -37,10 +37,42 @@ pub struct DriftMomentumInput<'a> {
     pub sign: f32,
 }
 
-/// a^Dm per particle, m/s^2 (module doc).
-pub fn drift_momentum(inp: &DriftMomentumInput, out: VelMut) {
+/// a^Dm per particle, m/s^2 (module doc). The phases enter through the
+/// symmetric tensor T_i = sum_k rho_k alpha_k,i u_mk,i (x) u_mk,i of each
+/// particle, so that a pair costs six gathers whatever the number of
+/// phases: the bracket of the module doc summed over k is
+/// (T_i + T_j) . grad W_ij. `t` is scratch for T (xx, yy, zz, xy, xz, yz;
+/// each the particle count).
+pub fn drift_momentum(inp: &DriftMomentumInput, out: VelMut, t: [&mut [f32]; 6]) {
     let np = inp.alpha.len();
     let u = inp.u_drift;
+    let [txx, tyy, tzz, txy, txz, tyz] = t;
+    txx.par_chunks_mut(BLOCK)
+        .zip(tyy.par_chunks_mut(BLOCK))
+        .zip(tzz.par_chunks_mut(BLOCK))
+        .zip(txy.par_chunks_mut(BLOCK))
+        .zip(txz.par_chunks_mut(BLOCK))
+        .zip(tyz.par_chunks_mut(BLOCK))
+        .enumerate()
+        .for_each(|(b, (((((xx, yy), zz), xy), xz), yz))| {
+            for q in 0..xx.len() {
+                let i = b * BLOCK + q;
+                let mut m = [0.0f32; 6];
+                for k in 0..np {
+                    let c = inp.density[k] * inp.alpha[k][i];
+                    let (ux, uy, uz) = (u.x[k][i], u.y[k][i], u.z[k][i]);
+                    let (cx, cy, cz) = (c * ux, c * uy, c * uz);
+                    m[0] += cx * ux;
+                    m[1] += cy * uy;
+                    m[2] += cz * uz;
+                    m[3] += cx * uy;
+                    m[4] += cx * uz;
+                    m[5] += cy * uz;
+                }
+                (xx[q], yy[q], zz[q], xy[q], xz[q], yz[q]) = (m[0], m[1], m[2], m[3], m[4], m[5]);
+            }
+        });
+    let (txx, tyy, tzz, txy, txz, tyz) = (&*txx, &*tyy, &*tzz, &*txy, &*txz, &*tyz);
     out.x
         .par_chunks_mut(BLOCK)
         .zip(out.y.par_chunks_mut(BLOCK))
@@ -60,26 +92,20 @@ pub fn drift_momentum(inp: &DriftMomentumInput, out: VelMut) {
                     sx += x;
                     sy += y;
                     sz += z;
-                    for k in 0..np {
-                        let (ux, uy, uz) = (gather(u.x[k], j, p), gather(u.y[k], j, p), gather(u.z[k], j, p));
-                        let t = F::splat(inp.density[k]) * gather(inp.alpha[k], j, p) * (ux * x + uy * y + uz * z);
-                        ax += t * ux;
-                        ay += t * uy;
-                        az += t * uz;
-                    }
+                    let (xx, yy, zz) = (gather(txx, j, p), gather(tyy, j, p), gather(tzz, j, p));
+                    let (xy, xz, yz) = (gather(txy, j, p), gather(txz, j, p), gather(tyz, j, p));
+                    ax += xx * x + xy * y + xz * z;
+                    ay += xy * x + yy * y + yz * z;
+                    az += xz * x + yz * y + zz * z;
                     p += LANES;
                 }
-                // The particle's own terms: sum_j of alpha_k,i u_mk,i
-                // (u_mk,i . g_ij) = alpha_k,i u_mk,i (u_mk,i . sum_j g_ij).
+                // The particle's own terms: T_i . sum_j g_ij.
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
-                let mut a = [sum(ax), sum(ay), sum(az)];
-                for k in 0..np {
-                    let (ux, uy, uz) = (u.x[k][i], u.y[k][i], u.z[k][i]);
-                    let t = inp.density[k] * inp.alpha[k][i] * (ux * sx + uy * sy + uz * sz);
-                    a[0] += t * ux;
-                    a[1] += t * uy;
-                    a[2] += t * uz;
-                }
+                let a = [
+                    sum(ax) + txx[i] * sx + txy[i] * sy + txz[i] * sz,
+                    sum(ay) + txy[i] * sx + tyy[i] * sy + tyz[i] * sz,
+                    sum(az) + txz[i] * sx + tyz[i] * sy + tzz[i] * sz,
+                ];
                 let rho = inp.rest_density[i];
                 let c = if rho > 0.0 { inp.sign / rho } else { 0.0 };
                 (ox[q], oy[q], oz[q]) = (c * a[0], c * a[1], c * a[2]);

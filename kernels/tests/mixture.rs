@@ -437,3 +437,73 @@ fn one_pass_transport_is_the_three_pass_form_bit_for_bit() {
         }
     }
 }
+
+/// The drift momentum term in its tensor form (T_i = sum_k rho_k alpha_k
+/// u_mk (x) u_mk per particle, six gathers a pair) against the module
+/// doc's sum over pairs and phases written out in f64: equal to f32
+/// rounding (1e-5 of the largest |a^Dm|), with 3 phases of random
+/// fractions and drift velocities.
+#[test]
+fn drift_momentum_tensor_form_is_the_sum_over_phases() {
+    use porosph_kernels::drift_momentum::{drift_momentum, DriftMomentumInput};
+    let mut rng = Lcg(23);
+    let lat = lattice(10, &mut rng);
+    let n = lat.x.len();
+    let np = 3;
+    let alpha = fractions(n, np, &mut rng);
+    let density = [850.0f32, 1000.0, 1300.0];
+    let rest: Vec<f32> = (0..n).map(|i| (0..np).map(|k| alpha[k][i] * density[k]).sum()).collect();
+    let field = |r: &mut Lcg| -> Vec<f32> { (0..n).map(|_| 4.0 * (r.next() - 0.5)).collect() };
+    let u: Vec<[Vec<f32>; 3]> = (0..np).map(|_| [field(&mut rng), field(&mut rng), field(&mut rng)]).collect();
+    let ux: Vec<&[f32]> = u.iter().map(|v| v[0].as_slice()).collect();
+    let uy: Vec<&[f32]> = u.iter().map(|v| v[1].as_slice()).collect();
+    let uz: Vec<&[f32]> = u.iter().map(|v| v[2].as_slice()).collect();
+    let aref: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+    let inp = DriftMomentumInput {
+        ff: &lat.ff,
+        alpha: &aref,
+        u_drift: PhaseVel { x: &ux, y: &uy, z: &uz },
+        density: &density,
+        rest_density: &rest,
+        sign: -1.0,
+    };
+    let mut out: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut t: [Vec<f32>; 6] = std::array::from_fn(|_| vec![0.0; n]);
+    {
+        let [ox, oy, oz] = &mut out;
+        let [a, b, c, d, e, f] = &mut t;
+        drift_momentum(&inp, VelMut { x: ox, y: oy, z: oz }, [a, b, c, d, e, f]);
+    }
+    let mut worst = 0.0f64;
+    let mut scale = 0.0f64;
+    for (b, blk) in lat.ff.used().iter().enumerate() {
+        for q in 0..blk.start.len() - 1 {
+            let i = b * BLOCK + q;
+            if i >= n {
+                break;
+            }
+            let mut a = [0.0f64; 3];
+            for p in blk.range(q) {
+                let j = blk.j[p] as usize;
+                let g = [blk.gx[p], blk.gy[p], blk.gz[p]].map(f64::from);
+                for k in 0..np {
+                    for (m, w) in [i, j].into_iter().map(|m| (m, f64::from(density[k]) * f64::from(alpha[k][m]))) {
+                        let v = [u[k][0][m], u[k][1][m], u[k][2][m]].map(f64::from);
+                        let ug = v[0] * g[0] + v[1] * g[1] + v[2] * g[2];
+                        for c in 0..3 {
+                            a[c] += w * v[c] * ug;
+                        }
+                    }
+                }
+            }
+            let c = -1.0 / f64::from(rest[i]);
+            for d in 0..3 {
+                let expected = c * a[d];
+                scale = scale.max(expected.abs());
+                worst = worst.max((f64::from(out[d][i]) - expected).abs());
+            }
+        }
+    }
+    assert!(scale > 1.0, "the field gives |a^Dm| up to {scale}");
+    assert!(worst <= 1e-5 * scale, "largest difference {worst} against |a^Dm| up to {scale}");
+}

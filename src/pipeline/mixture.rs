@@ -212,7 +212,9 @@ pub(super) fn drift_momentum(
             rest_density: ph.rest_density,
             sign: p.drift_momentum_sign,
         };
-        dm::drift_momentum(&inp, d.reborrow());
+        let n = fluid.len();
+        let t = [zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n)];
+        dm::drift_momentum(&inp, d.reborrow(), t);
         for (a, d) in [(ap.x, &*d.x), (ap.y, &*d.y), (ap.z, &*d.z)] {
             a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
         }
