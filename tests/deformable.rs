@@ -334,6 +334,21 @@ fn soak_two_sponges(
         .collect()
 }
 
+/// The squeeze set-up at d = 2 cm (max_dt 2 ms, P Table 2's sponge): a
+/// 0.12 m sponge, its base clamped, in a 0.1 m deep pool of 1 Pa s water,
+/// under a kinematic plate that moves by `motion` (the entries of a scene
+/// `motion = [...]` list).
+fn squeeze_at_2_cm(motion: &str) -> Simulation {
+    let solids = soft_box("sponge", [0.14, 0.0, 0.1], [0.26, 0.12, 0.22], 600.0)
+        + "fixed = { box = { min = [0.13, -0.01, 0.09], max = [0.27, 0.02, 0.23] } }\n"
+        + &porous("water", 7.5e-4, false)
+        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.12, 0.06], max = [0.3, 0.16, 0.26] }\n\
+           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
+           fixed = { box = { min = [0.09, 0.11, 0.05], max = [0.31, 0.17, 0.27] } }\n"
+        + &format!("motion = [{motion}]\n");
+    Simulation::new(common::scene_text(&pool(0.02, 0.002, [0.4, 0.3, 0.32], 0.1, 1.0, &solids)))
+}
+
 /// Squeeze (the issue's fourth criterion, CI size): a sponge standing in a
 /// pool, its base clamped, soaks for 1 s, is compressed by a kinematic
 /// plate (3 cm of its 12 cm in 0.5 s), held, and released. References:
@@ -345,19 +360,11 @@ fn soak_two_sponges(
 /// at least 90 % of its height within 1 s; mass conserved to 1e-6.
 #[test]
 fn squeezed_sponge_gives_its_liquid_back_and_recovers() {
-    let d = 0.02;
     let (hold_end, release_end) = (5.0, 5.5);
-    let solids = soft_box("sponge", [0.14, 0.0, 0.1], [0.26, 0.12, 0.22], 600.0)
-        + "fixed = { box = { min = [0.13, -0.01, 0.09], max = [0.27, 0.02, 0.23] } }\n"
-        + &porous("water", 7.5e-4, false)
-        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.12, 0.06], max = [0.3, 0.16, 0.26] }\n\
-           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
-           fixed = { box = { min = [0.09, 0.11, 0.05], max = [0.31, 0.17, 0.27] } }\n"
-        + &format!(
-            "motion = [{{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }}, \
-             {{ from = {hold_end}, until = {release_end}, velocity = [0.0, 0.06, 0.0] }}]\n"
-        );
-    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.3, 0.32], 0.1, 1.0, &solids)));
+    let mut sim = squeeze_at_2_cm(&format!(
+        "{{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }}, \
+         {{ from = {hold_end}, until = {release_end}, velocity = [0.0, 0.06, 0.0] }}"
+    ));
     let sponge = body(&sim, 0);
     let top = |sim: &Simulation| sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MIN, f32::max);
     let bottom0 = sponge.iter().map(|&i| sim.solids.y[i]).fold(f32::MAX, f32::min);
@@ -760,16 +767,8 @@ fn plate_oscillates_slower_in_water_by_its_added_mass() {
 #[test]
 #[ignore = "fails (issue 34 item 3 open): tau 3.25 s against Darcy's 0.146 s; 5 s at d = 2 cm, about 1 min"]
 fn squeeze_release_time_constant() {
-    let d = 0.02;
     let hold_end = 5.0;
-    let solids = soft_box("sponge", [0.14, 0.0, 0.1], [0.26, 0.12, 0.22], 600.0)
-        + "fixed = { box = { min = [0.13, -0.01, 0.09], max = [0.27, 0.02, 0.23] } }\n"
-        + &porous("water", 7.5e-4, false)
-        + "[[solid]]\nname = \"plate\"\nbox = { min = [0.1, 0.12, 0.06], max = [0.3, 0.16, 0.26] }\n\
-           density = 2000.0\nshear_modulus = 1e6\nlame_lambda = 1e6\n\
-           fixed = { box = { min = [0.09, 0.11, 0.05], max = [0.31, 0.17, 0.27] } }\n"
-        + "motion = [{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }]\n";
-    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.4, 0.3, 0.32], 0.1, 1.0, &solids)));
+    let mut sim = squeeze_at_2_cm("{ from = 1.0, until = 1.5, velocity = [0.0, -0.06, 0.0] }");
     let sponge = body(&sim, 0);
     let mut series = Vec::new();
     let mut t = 1.0;
