@@ -19,15 +19,28 @@ pub fn nblocks(n: usize) -> usize {
 /// index order (written to `parts`, which needs [`nblocks`]`(n)` entries and
 /// comes from the step's arena), then the block sums in block order.
 pub fn sum_f64(n: usize, parts: &mut [f64], f: impl Fn(usize) -> f64 + Sync) -> f64 {
-    let nb = nblocks(n);
-    parts[..nb].par_iter_mut().enumerate().for_each(|(b, s)| {
+    block_sums(n, parts, f);
+    combine(&parts[..nblocks(n)])
+}
+
+/// The partial sums of [`sum_f64`]: `parts[b]` = the sum of `f(i)` over
+/// block b, in index order from 0.0, for the [`nblocks`]`(n)` blocks.
+/// A distributed run's rank computes these for its own whole blocks.
+pub fn block_sums(n: usize, parts: &mut [f64], f: impl Fn(usize) -> f64 + Sync) {
+    parts[..nblocks(n)].par_iter_mut().enumerate().for_each(|(b, s)| {
         let mut acc = 0.0;
         for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
             acc += f(i);
         }
         *s = acc;
     });
-    parts[..nb].iter().sum()
+}
+
+/// The block sums combined in block order: the one place that fixes the
+/// order of [`sum_f64`]'s last step, so a distributed run that gathers
+/// every rank's [`block_sums`] in global block order gets the same bits.
+pub fn combine(parts: &[f64]) -> f64 {
+    parts.iter().sum()
 }
 
 /// Maximum over `0..n` of `f(i)` (0 for n = 0; NaN propagates).
