@@ -1,13 +1,30 @@
-//! Distributed runs (issue 19): how the particles are split among ranks.
+//! Distributed runs (issue 19): how the particles are split among ranks,
+//! and how the ranks talk.
 //!
-//! Only the partitioner and its dry run (`porosph partition`) so far: a
-//! rank owns a contiguous range of the global Morton order, cut on whole
-//! cache blocks ([`partition`]), and keeps a halo of one support radius;
-//! [`traffic`] is the model of the halo bytes a step exchanges, and
-//! [`report`] the table `porosph partition` prints.
+//! So far, without MPI and without changing the single-process step:
+//! - [`partition`](mod@partition): a rank owns a contiguous range of the
+//!   global Morton order, cut on whole cache blocks, and keeps a halo of
+//!   one support radius; [`traffic`] is the model of the halo bytes a
+//!   step exchanges, and [`report`] the table `porosph partition` prints
+//!   (the dry run).
+//! - [`comm`]: the [`Communicator`] trait and [`run_ranks`], P virtual
+//!   ranks as threads of one process.
+//! - [`halo`]: a rank's owned and halo particles in the single process's
+//!   order, and the exchange of halo values.
+//! - [`migrate`](mod@migrate): particles that moved go to their new
+//!   owners, and the ranges are cut again on whole blocks.
+//! - [`reduce`]: sums combined in global block order, bitwise the single
+//!   process's for any number of ranks.
 
+pub mod comm;
+pub mod halo;
+pub mod migrate;
 pub mod partition;
+pub mod reduce;
 pub mod report;
 pub mod traffic;
 
+pub use comm::{run_ranks, Communicator};
+pub use halo::HaloPlan;
+pub use migrate::{migrate, Migration};
 pub use partition::{partition, Kind, Partition, PartitionError, RankPart, MAX_RANKS};
