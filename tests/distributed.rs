@@ -10,7 +10,7 @@ use common::store_bits;
 use porosph::builtin;
 use porosph::distributed::migrate::{concat, range_of};
 use porosph::distributed::{migrate, partition, reduce, run_ranks, Communicator, HaloPlan, Kind, Partition};
-use porosph::pipeline::Simulation;
+use porosph::pipeline::{Params, Simulation};
 use porosph::scene::Scene;
 use porosph::store::{FluidStore, Scratch, WallStore};
 use porosph_kernels::blocks::{nblocks, sum_f64, BLOCK};
@@ -135,25 +135,137 @@ struct RankDensity {
     exchange_ms: f64,
 }
 
+/// One rank's passes up to the densities, over its owned and halo
+/// particles with the single process's kernels: pass 1's phase
+/// bookkeeping on the owned fluid `fluid` (rows in the plan's owned
+/// order), the halo exchange (fluid positions and V0; wall positions and
+/// rest volumes, `walls` = x, y, z, V0 of the owned walls), pass 0's pairs,
+/// pass 2's sigma and pass 4a's output density of the owned fluid, and a
+/// reduction as the solve's error test (the sum of |sigma - 1|).
+fn density_pass(
+    comm: &dyn Communicator,
+    plan: &HaloPlan,
+    p: &Params,
+    fluid: &FluidStore,
+    walls: [&[f32]; 4],
+) -> RankDensity {
+    let support = p.kernel.support;
+    let (fp, wp) = (&plan.kinds[Kind::Fluid as usize], &plan.kinds[Kind::Wall as usize]);
+    // Pass 1 as `pipeline::phases`: alpha_f and V0 = w(alpha_f) alpha_f h^3.
+    let cell = p.cell_volume();
+    let (mut alpha_f, mut v0) = (Vec::new(), Vec::new());
+    for i in 0..fluid.len() {
+        let mut a = 0.0f32;
+        for al in &fluid.alpha {
+            a += al[i];
+        }
+        alpha_f.push(a);
+        v0.push(iisph::row_weight(a) * a * cell);
+    }
+    // The halo, timed from when all ranks are ready, the fastest of 5.
+    let mut exchange_ms = f64::INFINITY;
+    let mut exchange = || {
+        comm.barrier();
+        let t = Instant::now();
+        let x = [&fluid.x, &fluid.y, &fluid.z].map(|c| plan.exchange(comm, Kind::Fluid, 1, c));
+        let v0_local = plan.exchange(comm, Kind::Fluid, 2, &v0);
+        let wx = [walls[0], walls[1], walls[2]].map(|c| plan.exchange(comm, Kind::Wall, 3, c));
+        let rest = plan.exchange(comm, Kind::Wall, 4, walls[3]);
+        exchange_ms = exchange_ms.min(t.elapsed().as_secs_f64() * 1e3);
+        (x, v0_local, wx, rest)
+    };
+    let (x, v0_local, wx, rest) = (0..5).map(|_| exchange()).last().expect("5 exchanges");
+    // Pass 0's pairs: FF, and FW with the walls' near-cell set.
+    let (mut fgrid, mut wgrid, mut near) = (CellGrid::default(), CellGrid::default(), CellGrid::default());
+    fgrid.build(&fp.keys, support);
+    wgrid.build(&wp.keys, support);
+    near.build(&wgrid.dilated_keys(), support);
+    let (mut ff, mut fb) = (PairLists::default(), PairLists::default());
+    build_pairs(&mut ff, vel(&x), vel(&x), &fgrid, None, &p.kernel);
+    build_pairs(&mut fb, vel(&x), vel(&wx), &wgrid, Some(&near), &p.kernel);
+    // Pass 2 for every local row (the halo's rows lack neighbours and are
+    // dropped), then pass 4a's output density as `pipeline::volumes`.
+    let nl = fp.local_len();
+    let (mut sigma, mut vol) = (vec![0.0f32; nl], vec![0.0f32; nl]);
+    iisph::fluid_volumes(&ff, &fb, None, &v0_local, &rest, &mut sigma, &mut vol);
+    let sigma = plan.owned_of(Kind::Fluid, &sigma);
+    let density: Vec<f32> = (0..fluid.len())
+        .map(|i| {
+            let mut outer = 0.0f32;
+            for (al, rho) in fluid.alpha.iter().zip(&p.phase_density) {
+                outer += al[i] * rho;
+            }
+            assert!(alpha_f[i] > 0.0);
+            outer / alpha_f[i] * sigma[i]
+        })
+        .collect();
+    let parts = reduce::block_sums(sigma.len(), |i| f64::from((sigma[i] - 1.0).abs()));
+    let error_sum = reduce::global_sum(comm, &parts);
+    RankDensity {
+        density,
+        sigma,
+        error_sum,
+        halo: [fp.halo_len(), wp.halo_len()],
+        sent: [fp.sent_len(), wp.sent_len()],
+        exchange_ms,
+    }
+}
+
+/// The ranks' densities in rank order against the single process's, bit
+/// for bit, and their error sums against its `sum_f64`; prints the halo.
+fn check_densities(ranks: usize, out: &[RankDensity], reference: &[f32], ms: f64) {
+    let n = reference.len();
+    let density: Vec<f32> = out.iter().flat_map(|r| r.density.iter().copied()).collect();
+    let sigma: Vec<f32> = out.iter().flat_map(|r| r.sigma.iter().copied()).collect();
+    assert_eq!(density.len(), n);
+    let differ = density.iter().zip(reference).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{ranks} ranks: {differ} of {n} densities differ from the single process");
+    // The reduction: the single process's sum_f64 over the gathered
+    // values (the same sigma bits: one phase, rho / 1 * sigma), on every
+    // rank.
+    let mut parts = vec![0.0; nblocks(n)];
+    let single = sum_f64(n, &mut parts, |i| f64::from((sigma[i] - 1.0).abs()));
+    assert!(single > 0.0);
+    for r in out {
+        assert_eq!(r.error_sum.to_bits(), single.to_bits(), "{ranks} ranks: the error sum");
+    }
+    let rows: Vec<String> = out
+        .iter()
+        .map(|r| {
+            let bytes = 16 * (r.sent[0] + r.sent[1]);
+            format!("{}/{}, {}/{}, {bytes} B, {:.2}", r.halo[0], r.halo[1], r.sent[0], r.sent[1], r.exchange_ms)
+        })
+        .collect();
+    eprintln!("P = {ranks}: {} ({ms:.0} ms in all)", rows.join("; "));
+}
+
+fn dam_break() -> (Simulation, FluidStore) {
+    let b = builtin::find("dam_break").expect("built-in dam break");
+    sorted(Scene::from_toml_str(b.text, "<built-in>").unwrap_or_else(|e| panic!("{e}")))
+}
+
+/// The owned walls of rank `r` in `part`: x, y, z and rest volume.
+fn owned_walls(part: &Partition, r: usize, walls: &WallStore) -> [Vec<f32>; 4] {
+    let pick = |v: &[f32]| part.ranks[r].owned[1].clone().map(|g| v[part.order[1][g] as usize]).collect();
+    [pick(&walls.x), pick(&walls.y), pick(&walls.z), pick(&walls.rest_volume)]
+}
+
 #[test]
 fn dam_break_densities_on_1_to_4_ranks_are_the_single_process_pass_bit_for_bit() {
-    let b = builtin::find("dam_break").expect("built-in dam break");
-    let (mut sim, s0) = sorted(Scene::from_toml_str(b.text, "<built-in>").unwrap_or_else(|e| panic!("{e}")));
+    let (mut sim, s0) = dam_break();
     let walls: WallStore = sim.walls.clone();
     let (p, support) = (sim.params.clone(), sim.params.kernel.support);
     // The single process: one step; its pass 4a writes the densities at
     // the positions of `s0` (pass 0 sorts the store as `sorted` did).
     sim.step().unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(sim.fluid.id, s0.id, "the step's sort is the one of `sorted`");
-    let reference = &sim.fluid.density;
-    let n = s0.len();
     let fluid_pos = positions(&s0.x, &s0.y, &s0.z);
     let wall_pos = positions(&walls.x, &walls.y, &walls.z);
     let none = positions(&[], &[], &[]);
-
-    let mut first_sigma: Option<Vec<f32>> = None;
     eprintln!(
-        "dam break, {n} fluid + {} wall; per rank: halo fluid/wall, sent fluid/wall, bytes sent, exchange ms",
+        "dam break, {} fluid + {} wall, halo from the partitioner; per rank: halo fluid/wall, sent fluid/wall, \
+         bytes sent, exchange ms",
+        s0.len(),
         walls.len()
     );
     for ranks in 1..=4 {
@@ -163,102 +275,76 @@ fn dam_break_densities_on_1_to_4_ranks_are_the_single_process_pass_bit_for_bit()
         assert!(part.order[0].iter().enumerate().all(|(i, &o)| i as u32 == o));
         let t = Instant::now();
         let out = run_ranks(ranks, |comm: &dyn Communicator| {
-            let plan = HaloPlan::new(&part, comm.rank());
-            let (fp, wp) = (&plan.kinds[Kind::Fluid as usize], &plan.kinds[Kind::Wall as usize]);
+            let r = comm.rank();
+            let plan = HaloPlan::new(&part, r);
             // What the rank holds at the start of the step: its own rows.
-            let own = fp.owned.clone();
-            let wall = |v: &[f32]| -> Vec<f32> { wp.owned.clone().map(|g| v[part.order[1][g] as usize]).collect() };
-            // Pass 1 (phase bookkeeping) on the owned particles, as
-            // `pipeline::phases`: alpha_f and V0 = w(alpha_f) alpha_f h^3.
-            let cell = p.cell_volume();
-            let (mut alpha_f, mut v0) = (Vec::new(), Vec::new());
-            for i in own.clone() {
-                let mut a = 0.0f32;
-                for al in &s0.alpha {
-                    a += al[i];
-                }
-                alpha_f.push(a);
-                v0.push(iisph::row_weight(a) * a * cell);
-            }
-            // The halo: positions and V0 of the fluid, positions and rest
-            // volumes of the walls. Timed from when all ranks are ready,
-            // the fastest of 5.
-            let mut exchange_ms = f64::INFINITY;
-            let mut exchange = || {
-                comm.barrier();
-                let t = Instant::now();
-                let x = [&s0.x, &s0.y, &s0.z].map(|c| plan.exchange(comm, Kind::Fluid, 1, &c[own.clone()]));
-                let v0_local = plan.exchange(comm, Kind::Fluid, 2, &v0);
-                let wx = [&walls.x, &walls.y, &walls.z].map(|c| plan.exchange(comm, Kind::Wall, 3, &wall(c)));
-                let rest = plan.exchange(comm, Kind::Wall, 4, &wall(&walls.rest_volume));
-                exchange_ms = exchange_ms.min(t.elapsed().as_secs_f64() * 1e3);
-                (x, v0_local, wx, rest)
-            };
-            let (x, v0_local, wx, rest) = (0..5).map(|_| exchange()).last().expect("5 exchanges");
-            // Pass 0's pairs over owned + halo, with the kernels of the
-            // single process: FF, and FW with the walls' near-cell set.
-            let (mut fgrid, mut wgrid, mut near) = (CellGrid::default(), CellGrid::default(), CellGrid::default());
-            fgrid.build(&fp.keys, support);
-            wgrid.build(&wp.keys, support);
-            near.build(&wgrid.dilated_keys(), support);
-            let (mut ff, mut fb) = (PairLists::default(), PairLists::default());
-            build_pairs(&mut ff, vel(&x), vel(&x), &fgrid, None, &p.kernel);
-            build_pairs(&mut fb, vel(&x), vel(&wx), &wgrid, Some(&near), &p.kernel);
-            // Pass 2: sigma and V for every local row (the halo's rows lack
-            // neighbours and are dropped), then pass 4a's output density.
-            let nl = fp.local.len();
-            let (mut sigma, mut vol) = (vec![0.0f32; nl], vec![0.0f32; nl]);
-            iisph::fluid_volumes(&ff, &fb, None, &v0_local, &rest, &mut sigma, &mut vol);
-            let sigma = plan.owned_of(Kind::Fluid, &sigma);
-            let density: Vec<f32> = own
-                .clone()
-                .zip(&sigma)
-                .enumerate()
-                .map(|(q, (i, &s))| {
-                    let mut outer = 0.0f32;
-                    for (al, rho) in s0.alpha.iter().zip(&p.phase_density) {
-                        outer += al[i] * rho;
-                    }
-                    assert!(alpha_f[q] > 0.0);
-                    outer / alpha_f[q] * s
-                })
-                .collect();
-            // A reduction as the solve's error test: sum of |sigma - 1|.
-            let parts = reduce::block_sums(sigma.len(), |i| f64::from((sigma[i] - 1.0).abs()));
-            let error_sum = reduce::global_sum(comm, &parts);
-            RankDensity {
-                density,
-                sigma,
-                error_sum,
-                halo: [fp.halo_len(), wp.halo_len()],
-                sent: [fp.sent_len(), wp.sent_len()],
-                exchange_ms,
-            }
+            let fluid = range_of(&s0, part.ranks[r].owned[0].clone());
+            let [wx, wy, wz, wv] = owned_walls(&part, r, &walls);
+            density_pass(comm, &plan, &p, &fluid, [&wx, &wy, &wz, &wv])
         });
-        let wall_ms = t.elapsed().as_secs_f64() * 1e3;
-        let density: Vec<f32> = out.iter().flat_map(|r| r.density.iter().copied()).collect();
-        let sigma: Vec<f32> = out.iter().flat_map(|r| r.sigma.iter().copied()).collect();
-        assert_eq!(density.len(), n);
-        let differ = density.iter().zip(reference).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-        assert_eq!(differ, 0, "{ranks} ranks: {differ} of {n} densities differ from the single process");
-        let first = first_sigma.get_or_insert_with(|| sigma.clone());
-        assert!(sigma.iter().zip(first.iter()).all(|(a, b)| a.to_bits() == b.to_bits()), "{ranks} ranks: sigma");
-        // The reduction: the single process's sum_f64 over the gathered
-        // values, on every rank.
-        let mut parts = vec![0.0; nblocks(n)];
-        let single = sum_f64(n, &mut parts, |i| f64::from((first[i] - 1.0).abs()));
-        assert!(single > 0.0);
-        for r in &out {
-            assert_eq!(r.error_sum.to_bits(), single.to_bits(), "{ranks} ranks: the error sum");
+        check_densities(ranks, &out, &sim.fluid.density, t.elapsed().as_secs_f64() * 1e3);
+    }
+}
+
+#[test]
+fn dam_break_step_51_on_migrated_ranks_with_a_discovered_halo_is_the_single_process_pass() {
+    let (mut sim, _) = dam_break();
+    let walls: WallStore = sim.walls.clone();
+    let (p, support) = (sim.params.clone(), sim.params.kernel.support);
+    for _ in 0..49 {
+        sim.step().unwrap_or_else(|e| panic!("{e}"));
+    }
+    // Step 50 cuts the order of its pass 0 and moves the particles.
+    let mut cut = sim.fluid.clone();
+    resort(&mut cut, support);
+    sim.step().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(sim.fluid.id, cut.id);
+    let moved = sim.fluid.clone();
+    // Step 51: its pass 0 sorts `moved`, its pass 4a gives the densities.
+    let mut sorted51 = moved.clone();
+    resort(&mut sorted51, support);
+    sim.step().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(sim.fluid.id, sorted51.id);
+    let changed = (0..moved.len()).filter(|&i| moved.id[i] != sorted51.id[i]).count();
+    eprintln!("dam break, steps 50-51: {changed} of {} fluid particles change place in the order", moved.len());
+    assert!(changed > 0, "nothing moved across the order");
+    let cut_pos = positions(&cut.x, &cut.y, &cut.z);
+    let wall_pos = positions(&walls.x, &walls.y, &walls.z);
+    let none = positions(&[], &[], &[]);
+    for ranks in 1..=4 {
+        let part = partition([vel(&cut_pos), vel(&wall_pos), vel(&none)], support, ranks).expect("split");
+        let first_keys: Vec<u64> = part.ranks.iter().map(|r| r.first_key).collect();
+        let t = Instant::now();
+        let out = run_ranks(ranks, |comm: &dyn Communicator| {
+            let r = comm.rank();
+            // The rank's rows after step 50's move, migrated (step 51's
+            // pass 0); the walls stay where step 50's cut put them.
+            let own = part.ranks[r].owned[0].clone();
+            let mut fluid = range_of(&moved, own.clone());
+            comm.barrier();
+            let t = Instant::now();
+            let m = migrate(comm, &mut fluid, own.start, &first_keys, support).expect("migrate");
+            let ms_migrate = t.elapsed().as_secs_f64() * 1e3;
+            let fidx: Vec<u32> = m.ranges[r].clone().map(|g| g as u32).collect();
+            let widx: Vec<u32> = part.ranks[r].owned[1].clone().map(|g| part.order[1][g]).collect();
+            let [wx, wy, wz, wv] = owned_walls(&part, r, &walls);
+            let fp = positions(&fluid.x, &fluid.y, &fluid.z);
+            let wp = [wx.clone(), wy.clone(), wz.clone()];
+            let t = Instant::now();
+            let plan = HaloPlan::discover(comm, support, [vel(&fp), vel(&wp), vel(&none)], [&fidx, &widx, &[]]);
+            let ms_discover = t.elapsed().as_secs_f64() * 1e3;
+            let moves = (m.routed, m.recut, ms_migrate, ms_discover);
+            (density_pass(comm, &plan, &p, &fluid, [&wx, &wy, &wz, &wv]), moves)
+        });
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let moves: Vec<String> =
+            out.iter().map(|(_, m)| format!("{}+{} in {:.2} ms, halo found in {:.2} ms", m.0, m.1, m.2, m.3)).collect();
+        eprintln!("P = {ranks}: migrated (by key + across the new cut) {}", moves.join("; "));
+        if ranks > 1 {
+            assert!(out.iter().any(|(_, m)| m.0 + m.1 > 0), "no particle changed rank");
         }
-        let rows: Vec<String> = out
-            .iter()
-            .map(|r| {
-                let bytes = 16 * (r.sent[0] + r.sent[1]);
-                format!("{}/{}, {}/{}, {bytes} B, {:.2}", r.halo[0], r.halo[1], r.sent[0], r.sent[1], r.exchange_ms)
-            })
-            .collect();
-        eprintln!("P = {ranks}: {} ({wall_ms:.0} ms in all)", rows.join("; "));
+        let out: Vec<RankDensity> = out.into_iter().map(|o| o.0).collect();
+        check_densities(ranks, &out, &sim.fluid.density, ms);
     }
 }
 
@@ -322,8 +408,16 @@ fn migration_leaves_each_particle_on_one_rank_and_the_store_the_single_process_s
                         reduce::global_sum(comm, &reduce::block_sums(a.len(), |i| f64::from(a[i]))).to_bits()
                     })
                     .collect();
-                (offset, keys) = (m.ranges[comm.rank()].start, m.first_keys.clone());
-                rounds.push((store.clone(), m, vols));
+                // The halo of the new owners, found by the ranks.
+                let range = m.ranges[comm.rank()].clone();
+                let index: Vec<u32> = range.clone().map(|g| g as u32).collect();
+                let fp = positions(&store.x, &store.y, &store.z);
+                let plan = HaloPlan::discover(comm, support, [vel(&fp), vel(&none), vel(&none)], [&index, &[], &[]]);
+                let mut halo: Vec<u32> =
+                    plan.kinds[0].index.iter().copied().filter(|&g| !range.contains(&(g as usize))).collect();
+                halo.sort_unstable();
+                (offset, keys) = (range.start, m.first_keys.clone());
+                rounds.push((store.clone(), m, vols, halo));
             }
             rounds
         });
@@ -350,6 +444,10 @@ fn migration_leaves_each_particle_on_one_rank_and_the_store_the_single_process_s
                 assert_eq!(s.len(), rp.owned[0].len());
                 assert_eq!(m.first_keys[r], rp.first_key, "{ranks} ranks, rank {r}");
                 assert_eq!(rp.owned[0].start % BLOCK, 0);
+            }
+            // The halo the ranks found is the partitioner's.
+            for (r, rp) in cut.ranks.iter().enumerate() {
+                assert_eq!(out[r][round].3, rp.halo[0], "{ranks} ranks, rank {r}: the discovered halo");
             }
             // Every phase's volume: the single process's bits on every rank.
             for r in &out {
