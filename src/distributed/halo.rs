@@ -6,17 +6,18 @@
 //! [`HaloPlan::new`] reads one rank's share from a [`Partition`] (the
 //! partitioner's search over all positions, at setup), and
 //! [`HaloPlan::discover`] finds it among the ranks themselves, as a step
-//! must after [`super::migrate`]: which of its owned particles each other
-//! rank needs, and how many it receives from each. [`HaloPlan::exchange`] then turns the values of the owned
-//! particles of a kind (positions, a value a pass computed) into the values
-//! of every local particle, in the *local order*: owned and halo particles
+//! must after [`super::migrate::migrate`]: which of its owned particles
+//! each other rank needs, and how many it receives from each.
+//! [`HaloPlan::exchange`] then turns the values of the owned particles of
+//! a kind (positions, a value a pass computed) into the values of every
+//! local particle, in the *local order*: owned and halo particles
 //! together, by Morton key, ties by the index in the single process's
 //! store ([`Partition::order`], for a partition made from the stores in
-//! their order). That is the single process's order restricted to the local
-//! particles (its stores are in key order, ties by index: the fluid after
-//! pass 0's sort, the walls since setup, the solids' sorted copy), so a
-//! pair search over them lists each particle's neighbours in the same
-//! order, and a pass sums them in the same order, to the same bits.
+//! their order). That is the single process's order restricted to the
+//! local particles (its stores are in key order, ties by index: the fluid
+//! after pass 0's sort, the walls since setup, the solids' sorted copy),
+//! so a pair search over them lists each particle's neighbours in the
+//! same order, and a pass sums them in the same order, to the same bits.
 //!
 //! [`HaloPlan::discover`], on every rank together:
 //! 1. Each rank's occupied cells (size H, every kind) go to every rank.
@@ -163,7 +164,7 @@ impl HaloPlan {
     /// This rank's plan, found by the ranks together (module doc) from
     /// what each owns now: positions of each kind ([`Kind`] order) and the
     /// single process's store index of each particle (for the fluid after
-    /// [`super::migrate`], its index in the new global order).
+    /// [`super::migrate::migrate`], its index in the new global order).
     pub fn discover(comm: &dyn Communicator, support: f32, owned: [Vel; 3], index: [&[u32]; 3]) -> Self {
         let (me, size) = (comm.rank(), comm.size());
         let keys: [Vec<u64>; 3] = owned.map(|p| {

@@ -10,7 +10,8 @@
 //! - [`comm`]: the [`Communicator`] trait and [`run_ranks`], P virtual
 //!   ranks as threads of one process.
 //! - [`halo`]: a rank's owned and halo particles in the single process's
-//!   order, and the exchange of halo values.
+//!   order (from the partitioner, or found by the ranks after a
+//!   migration), and the exchange of halo values.
 //! - [`migrate`](mod@migrate): particles that moved go to their new
 //!   owners, and the ranges are cut again on whole blocks.
 //! - [`reduce`]: sums combined in global block order, bitwise the single
