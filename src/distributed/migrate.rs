@@ -137,11 +137,18 @@ fn keys_of(store: &FluidStore, support: f32) -> Vec<u64> {
 
 /// A store with the same columns (and phases) as `like` and no particles.
 pub fn empty_like(like: &FluidStore) -> FluidStore {
-    let mut s = like.clone();
-    s.for_each_column_mut(|_, _, c| match c {
-        ColumnMut::F32(v) => v.clear(),
-        ColumnMut::U32(v) => v.clear(),
-        ColumnMut::PerPhase(v) => v.iter_mut().for_each(Vec::clear),
+    let mut phases = Vec::new();
+    like.for_each_column(|_, _, c| {
+        if let Column::PerPhase(v) = c {
+            phases.push(v.len());
+        }
+    });
+    let mut s = FluidStore::default();
+    let mut phases = phases.into_iter();
+    s.for_each_column_mut(|_, _, c| {
+        if let ColumnMut::PerPhase(v) = c {
+            *v = vec![Vec::new(); phases.next().unwrap_or(0)];
+        }
     });
     s
 }
