@@ -331,8 +331,9 @@ impl SolidModel for Mixed {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
+        continued: bool,
     ) -> SolidStats {
-        self.elastic.respond(solids, force, accel, tolerance, max_iterations)
+        self.elastic.respond(solids, force, accel, tolerance, max_iterations, continued)
     }
 
     fn mobility(&self, solids: &SolidStore, out: &mut [f32]) {

@@ -13,7 +13,8 @@ use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::elasticity::{
-    conjugate_gradients, deform, forces, stress_rl, trace, CgBuffers, CgStats, Deformation, Lame, RestState, System,
+    conjugate_gradients, conjugate_gradients_from, deform, forces, stress_rl, trace, CarriedResidual, CgBuffers,
+    CgStats, Deformation, Lame, RestState, System,
 };
 use porosph_kernels::granular::Walls;
 use porosph_kernels::kernel::Kernel;
@@ -62,7 +63,10 @@ pub trait SolidModel: Send + Sync {
     /// entry) of the particles under the forces `force` (N) within this
     /// step: the solution of the implicit step's system for a force alone
     /// (fixed particles: 0), to the relative residual `tolerance` or
-    /// `max_iterations`.
+    /// `max_iterations`. `continued`: this solve continues the last one of
+    /// this step's system from its answer (a Jacobi sweep's response after
+    /// the last sweep's), so a model may carry its residual over instead
+    /// of recomputing it.
     fn respond(
         &mut self,
         solids: &SolidStore,
@@ -70,6 +74,7 @@ pub trait SolidModel: Send + Sync {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
+        continued: bool,
     ) -> SolidStats;
 
     /// An estimate of each particle's mobility, d a_i / d F_i of
@@ -133,6 +138,9 @@ pub struct Peer2018 {
     force: Vec<Vec3>,
     rhs: Vec<Vec3>,
     cg: CgBuffers,
+    /// The last response's residual, for the next sweep's
+    /// ([`SolidModel::respond`]'s `continued`).
+    carry: CarriedResidual,
 }
 
 impl Peer2018 {
@@ -167,6 +175,7 @@ impl Peer2018 {
             force: Vec::new(),
             rhs: Vec::new(),
             cg: CgBuffers::default(),
+            carry: CarriedResidual::default(),
         }
     }
 
@@ -198,6 +207,7 @@ impl SolidModel for Peer2018 {
     }
 
     fn deform(&mut self, s: &mut SolidStore) {
+        self.carry.forget();
         let n = s.len();
         self.x.clear();
         self.x.extend((0..n).map(|i| Vec3::new(s.x[i], s.y[i], s.z[i])));
@@ -215,6 +225,8 @@ impl SolidModel for Peer2018 {
     fn predict(&mut self, s: &mut SolidStore, g: Vec3, pore: Option<&[f32]>, dt: f32, _: &Current) -> SolidStats {
         let n = s.len();
         self.dt = dt;
+        // A new system: the last step's residual is not this one's.
+        self.carry.forget();
         self.t.resize(n, Mat3::ZERO);
         self.von_mises.resize(n, 0.0);
         self.force.resize(n, Vec3::ZERO);
@@ -258,10 +270,17 @@ impl SolidModel for Peer2018 {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
+        continued: bool,
     ) -> SolidStats {
         let mut cg = std::mem::take(&mut self.cg);
-        let stats = conjugate_gradients(&self.system(s), force, accel, tolerance, max_iterations, &mut cg);
+        let mut carry = std::mem::take(&mut self.carry);
+        if !continued {
+            carry.forget();
+        }
+        let stats =
+            conjugate_gradients_from(&self.system(s), force, accel, tolerance, max_iterations, &mut cg, &mut carry);
         self.cg = cg;
+        self.carry = carry;
         stats
     }
 
@@ -291,6 +310,7 @@ impl SolidModel for Peer2018 {
             + 36 * self.t.capacity()
             + 4 * self.von_mises.capacity()
             + self.cg.bytes()
+            + self.carry.bytes()
     }
 }
 
@@ -325,7 +345,10 @@ impl Compliance for BodyResponse<'_> {
         }
         let (tol, max) =
             if exact { (self.tolerance, self.max_iterations) } else { (self.tolerance, RESPONSE_ITERATIONS_PER_SWEEP) };
-        let stats = self.model.respond(self.solids, self.force, self.accel, tol, max);
+        // Every sweep's response continues the last one (the same system,
+        // warm-started from its answer); the exact one at the end starts
+        // from its true residual.
+        let stats = self.model.respond(self.solids, self.force, self.accel, tol, max, !exact);
         if exact {
             self.stats = stats;
         }
