@@ -230,9 +230,62 @@ fn build<const W: bool>(
         CANDIDATES.with_borrow_mut(|cand| {
             let lo = b * BLOCK;
             let sums = out.map(|o| (val, o));
-            block_pairs::<W>(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel, sums)
+            let caps = blk.capacities();
+            block_pairs::<W>(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel, sums);
+            if blk.capacities() != caps {
+                blk.release_tails();
+            }
         })
     });
+}
+
+impl PairBlock {
+    /// The capacities of the pair lists.
+    fn capacities(&self) -> [usize; 5] {
+        [self.j.capacity(), self.w.capacity(), self.gx.capacity(), self.gy.capacity(), self.gz.capacity()]
+    }
+
+    /// Hands the whole pages of the lists' unused capacity back to the
+    /// system (their memory stays allocated; a later write gets fresh
+    /// pages). Called when a list has grown: the allocator may have placed
+    /// it in memory written before (buffers freed earlier, the lists'
+    /// own smaller predecessors), whose pages beyond the pairs would
+    /// otherwise stay resident (bench/RESULTS.md, memory per fluid
+    /// particle). A list grows only where a block has more pairs than
+    /// ever before, so a step in steady state does not get here.
+    fn release_tails(&self) {
+        release_tail(&self.j);
+        release_tail(&self.w);
+        release_tail(&self.gx);
+        release_tail(&self.gy);
+        release_tail(&self.gz);
+    }
+}
+
+/// [`PairBlock::release_tails`] for one list: `madvise(MADV_DONTNEED)` over
+/// the whole pages between its length and its capacity (Linux; elsewhere
+/// nothing).
+fn release_tail<T>(v: &Vec<T>) {
+    #[cfg(target_os = "linux")]
+    {
+        const PAGE: usize = 4096;
+        let base = v.as_ptr() as usize;
+        let (lo, hi) = (base + v.len() * size_of::<T>(), base + v.capacity() * size_of::<T>());
+        // One vector past the length: the compressed stores write whole
+        // vectors (query_pairs).
+        let lo = (lo + LANES * size_of::<T>()).next_multiple_of(PAGE);
+        let hi = hi / PAGE * PAGE;
+        if lo < hi {
+            // SAFETY: lo..hi lies inside the vector's allocation, past its
+            // initialised elements (and past the whole vector that a
+            // compressed store may write after them), in whole pages; with
+            // MADV_DONTNEED those pages read as zeros afterwards, and the
+            // vector reads nothing there before writing it.
+            unsafe {
+                libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_DONTNEED);
+            }
+        }
+    }
 }
 
 /// The candidate targets shared by a run of queries in one cell (see
