@@ -266,8 +266,12 @@ impl PairBlock {
 /// the whole pages between its length and its capacity (Linux; elsewhere
 /// nothing).
 fn release_tail<T>(v: &Vec<T>) {
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
     #[cfg(target_os = "linux")]
     {
+        // Where pages are larger, an unaligned range makes the call fail
+        // (EINVAL), which only leaves the pages resident.
         const PAGE: usize = 4096;
         let base = v.as_ptr() as usize;
         let (lo, hi) = (base + v.len() * size_of::<T>(), base + v.capacity() * size_of::<T>());
