@@ -128,7 +128,7 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
     let v0_b: Vec<f32> = (0..nw).map(|_| rng.range(0.5, 1.0) * cell).collect();
     let sigma_static: Vec<f32> = (0..nw).map(|_| rng.range(0.6, 0.9)).collect();
     let (mut sigma, mut vol) = (vec![0.0; n], vec![0.0; n]);
-    iisph::fluid_volumes(&ff, &fb, None, &v0, &v0_b, &mut sigma, &mut vol);
+    iisph::fluid_volumes(iisph::FluidSums::Pairs(&ff), &fb, None, &v0, &v0_b, &mut sigma, &mut vol);
     let (mut sigma_b, mut vol_b) = (vec![0.0; na], vec![0.0; na]);
     iisph::wall_volumes(&bf, &active, &sigma_static, &v0_b, &v0, &mut sigma_b, &mut vol_b);
     let mut vol_b_full = vec![0.0; nw];

@@ -51,12 +51,23 @@ pub struct SolidPairs<'a> {
     pub values: &'a [f32],
 }
 
+/// The fluid part of the fluid rows' sigma_i = sum_j V0_j W_ij in
+/// [`fluid_volumes`].
+#[derive(Clone, Copy)]
+pub enum FluidSums<'a> {
+    /// From the fluid-fluid pairs with their kernel values.
+    Pairs(&'a PairLists),
+    /// Already summed, per fluid particle (by the neighbour pass:
+    /// [`crate::neighbors::build_gradient_pairs`], the same sum bit for bit).
+    Done(&'a [f32]),
+}
+
 /// Pass 2/4b, fluid rows: sigma_i = sum_j V0_j W_ij over fluid (incl. self),
 /// wall and solid (`fs`, with the solids' rest volumes) neighbours, and the
 /// current volume V_i = V0_i / sigma_i (PHYSICS.md §2.3). `sigma` is the
 /// smoothed outer-fluid fraction V0/V.
 pub fn fluid_volumes(
-    ff: &PairLists,
+    ff: FluidSums,
     fb: &PairLists,
     fs: Option<SolidPairs>,
     v0_f: &[f32],
@@ -64,19 +75,25 @@ pub fn fluid_volumes(
     sigma: &mut [f32],
     vol: &mut [f32],
 ) {
-    let nb = ff.used().len();
+    let nb = fb.used().len();
     let v0_s = fs.map_or(&[][..], |f| f.values);
+    let own = |b: usize, q: usize| match ff {
+        FluidSums::Pairs(ff) => {
+            let bf = &ff.used()[b];
+            weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f)
+        }
+        FluidSums::Done(s) => s[b * BLOCK + q],
+    };
     sigma
         .par_chunks_mut(BLOCK)
         .zip(vol.par_chunks_mut(BLOCK))
-        .zip(ff.used().par_iter().zip(fb.used().par_iter()))
+        .zip(fb.used().par_iter())
         .zip(opt_blocks(fs.map(|f| f.pairs), nb))
         .enumerate()
-        .for_each(|(b, (((sig, v), (bf, bb)), bs))| {
+        .for_each(|(b, (((sig, v), bb), bs))| {
             for q in 0..sig.len() {
                 let i = b * BLOCK + q;
-                let mut s =
-                    weighted_sum(&bf.j, &bf.w, bf.range(q), v0_f) + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
+                let mut s = own(b, q) + weighted_sum(&bb.j, &bb.w, bb.range(q), v0_b);
                 if let Some(bs) = bs {
                     s += weighted_sum(&bs.j, &bs.w, bs.range(q), v0_s);
                 }

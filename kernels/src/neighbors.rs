@@ -9,7 +9,7 @@
 use crate::blocks::BLOCK;
 use crate::grid::{cell_of, morton, CellGrid};
 use crate::kernel::{Kernel, KernelShape};
-use crate::lanes::{load, load_partial, store, F, LANES};
+use crate::lanes::{gather, load, load_partial, store, sum, F, LANES};
 use crate::soa::Vel;
 use rayon::prelude::*;
 
@@ -174,18 +174,122 @@ pub fn build_pairs(
     near: Option<&CellGrid>,
     kernel: &Kernel,
 ) {
+    build::<true>(lists, query, target, grid, near, kernel, None)
+}
+
+/// [`build_pairs`] without storing the kernel values (`w` stays empty: 16
+/// bytes a pair slot instead of 20), which only the density sum reads:
+/// instead, `sums[i]` = sum_j `val[j]` W_ij for every query i, the sum of
+/// [`crate::iisph::fluid_volumes`] over stored values, bit for bit (the
+/// same W_ij, products and lane-wise accumulation in the same order). For
+/// the fluid-fluid pairs, with `val` = V0 of the fluid.
+#[allow(clippy::too_many_arguments)]
+pub fn build_gradient_pairs(
+    lists: &mut PairLists,
+    query: Vel,
+    target: Vel,
+    grid: &CellGrid,
+    near: Option<&CellGrid>,
+    kernel: &Kernel,
+    val: &[f32],
+    sums: &mut [f32],
+) {
+    assert_eq!(sums.len(), query.len(), "one sum per query");
+    build::<false>(lists, query, target, grid, near, kernel, Some((val, sums)))
+}
+
+/// [`build_pairs`] (`W`: with the kernel values) or
+/// [`build_gradient_pairs`] (with `sums`).
+fn build<const W: bool>(
+    lists: &mut PairLists,
+    query: Vel,
+    target: Vel,
+    grid: &CellGrid,
+    near: Option<&CellGrid>,
+    kernel: &Kernel,
+    sums: Option<(&[f32], &mut [f32])>,
+) {
     let n = query.len();
     let nblocks = n.div_ceil(BLOCK);
     if lists.blocks.len() < nblocks {
         lists.blocks.resize_with(nblocks, PairBlock::default);
     }
     lists.n = n;
-    lists.blocks[..nblocks].par_iter_mut().enumerate().for_each(|(b, blk)| {
+    let (val, out) = match sums {
+        Some((v, s)) => (v, s),
+        None => (&[][..], &mut [][..]),
+    };
+    let with_sums = !out.is_empty();
+    let blocks = lists.blocks[..nblocks].par_iter_mut();
+    let out = if with_sums {
+        rayon::iter::Either::Left(out.par_chunks_mut(BLOCK).map(Some))
+    } else {
+        rayon::iter::Either::Right((0..nblocks).into_par_iter().map(|_| None))
+    };
+    blocks.zip(out).enumerate().for_each(|(b, (blk, out))| {
         CANDIDATES.with_borrow_mut(|cand| {
             let lo = b * BLOCK;
-            block_pairs(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel)
+            let sums = out.map(|o| (val, o));
+            let caps = blk.capacities();
+            block_pairs::<W>(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel, sums);
+            if blk.capacities() != caps {
+                blk.release_tails();
+            }
         })
     });
+}
+
+impl PairBlock {
+    /// The capacities of the pair lists.
+    fn capacities(&self) -> [usize; 5] {
+        [self.j.capacity(), self.w.capacity(), self.gx.capacity(), self.gy.capacity(), self.gz.capacity()]
+    }
+
+    /// Hands the whole pages of the lists' unused capacity back to the
+    /// system (their memory stays allocated; a later write gets fresh
+    /// pages). Called when a list has grown: the allocator may have placed
+    /// it in memory written before (buffers freed earlier, the lists'
+    /// own smaller predecessors), whose pages beyond the pairs would
+    /// otherwise stay resident (bench/RESULTS.md, memory per fluid
+    /// particle). A list grows only where a block has more pairs than
+    /// ever before, so a step in steady state does not get here.
+    fn release_tails(&self) {
+        release_tail(&self.j);
+        release_tail(&self.w);
+        release_tail(&self.gx);
+        release_tail(&self.gy);
+        release_tail(&self.gz);
+    }
+}
+
+/// [`PairBlock::release_tails`] for one list: `madvise(MADV_DONTNEED)` over
+/// the whole pages between its length and its capacity (Linux; elsewhere
+/// nothing).
+fn release_tail<T>(v: &Vec<T>) {
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+    #[cfg(target_os = "linux")]
+    {
+        // Where pages are larger, an unaligned range makes the call fail
+        // (EINVAL), which only leaves the pages resident.
+        const PAGE: usize = 4096;
+        let base = v.as_ptr() as usize;
+        let (lo, hi) = (base + v.len() * size_of::<T>(), base + v.capacity() * size_of::<T>());
+        // One vector past the length: the compressed stores write whole
+        // vectors (query_pairs).
+        let lo = (lo + LANES * size_of::<T>()).next_multiple_of(PAGE);
+        let hi = hi / PAGE * PAGE;
+        if lo < hi {
+            // SAFETY: lo..hi lies inside the vector's allocation, past its
+            // initialised elements (and past the whole vector that a
+            // compressed store may write after them), in whole pages; with
+            // MADV_DONTNEED those pages read as zeros afterwards, and the
+            // vector reads nothing there before writing it.
+            unsafe {
+                libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_DONTNEED);
+            }
+        }
+    }
 }
 
 /// The candidate targets shared by a run of queries in one cell (see
@@ -207,7 +311,7 @@ thread_local! {
 
 /// The pairs of the queries `rows` (one cache block) into `blk`.
 #[allow(clippy::too_many_arguments)]
-fn block_pairs(
+fn block_pairs<const W: bool>(
     blk: &mut PairBlock,
     cand: &mut Candidates,
     query: Vel,
@@ -216,6 +320,7 @@ fn block_pairs(
     grid: &CellGrid,
     near: Option<&CellGrid>,
     kernel: &Kernel,
+    mut sums: Option<(&[f32], &mut [f32])>,
 ) {
     let h2 = kernel.support * kernel.support;
     blk.clear();
@@ -257,15 +362,21 @@ fn block_pairs(
             blk.gx.resize(end, 0.0);
             blk.gy.resize(end, 0.0);
             blk.gz.resize(end, 0.0);
-            blk.w.resize(end, 0.0);
+            if W {
+                blk.w.resize(end, 0.0);
+            }
             // Pass 2, the shape chosen once per query, not per vector.
-            match kernel.shape {
-                KernelShape::CubicSpline => {
-                    kernel_values(blk, first, real, |r| (kernel.cubic_spline_w(r), kernel.cubic_spline_grad_over_r(r)))
-                }
-                KernelShape::WendlandC2 => {
-                    kernel_values(blk, first, real, |r| (kernel.wendland_w(r), kernel.wendland_grad_over_r(r)))
-                }
+            let val = sums.as_ref().map(|s| s.0);
+            let sum = match kernel.shape {
+                KernelShape::CubicSpline => kernel_values::<W>(blk, first, real, val, |r| {
+                    (kernel.cubic_spline_w(r), kernel.cubic_spline_grad_over_r(r))
+                }),
+                KernelShape::WendlandC2 => kernel_values::<W>(blk, first, real, val, |r| {
+                    (kernel.wendland_w(r), kernel.wendland_grad_over_r(r))
+                }),
+            };
+            if let Some((_, out)) = sums.as_mut() {
+                out[i - rows.start] = sum;
             }
             blk.start.push(blk.j.len() as u32);
         }
@@ -417,9 +528,18 @@ fn query_pairs(blk: &mut PairBlock, cand: &Candidates, q: [f32; 3], h2: f32) {
 
 /// Pass 2 of [`build_pairs`] for one query: kernel values and gradients
 /// (`wg` gives W and W'/r) of its `real` pairs from `first`, a whole
-/// vector at a time (padding lanes stay 0).
+/// vector at a time (padding lanes stay 0). Stores W if `W`; returns
+/// sum_j val_j W_ij where `val` is given (as `iisph::weighted_sum` sums
+/// the stored values), else 0.
 #[inline(always)]
-fn kernel_values(blk: &mut PairBlock, first: usize, real: usize, wg: impl Fn(F) -> (F, F)) {
+fn kernel_values<const W: bool>(
+    blk: &mut PairBlock,
+    first: usize,
+    real: usize,
+    val: Option<&[f32]>,
+    wg: impl Fn(F) -> (F, F),
+) -> f32 {
+    let mut acc = F::ZERO;
     let mut k = first;
     while k < blk.j.len() {
         let (dx, dy, dz) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
@@ -428,12 +548,19 @@ fn kernel_values(blk: &mut PairBlock, first: usize, real: usize, wg: impl Fn(F) 
         let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < valid { 1.0 } else { 0.0 }));
         let (w, g) = wg(r);
         let g = g * keep;
-        store(&mut blk.w, k, w * keep);
+        let w = w * keep;
+        if W {
+            store(&mut blk.w, k, w);
+        }
+        if let Some(val) = val {
+            acc += gather(val, &blk.j, k) * w;
+        }
         store(&mut blk.gx, k, g * dx);
         store(&mut blk.gy, k, g * dy);
         store(&mut blk.gz, k, g * dz);
         k += LANES;
     }
+    sum(acc)
 }
 
 /// Sorts the ranges by start and joins ranges that touch (in Morton order,

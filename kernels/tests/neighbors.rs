@@ -219,3 +219,50 @@ fn pair_lists_match_brute_force_bit_for_bit() {
         }
     }
 }
+
+/// `build_gradient_pairs` lays out the same pairs and gradients as
+/// `build_pairs` without the kernel values, and its sums are the density
+/// sums of `iisph::fluid_volumes` over the stored values, bit for bit:
+/// random clouds and a lattice, both kernel shapes, non-uniform values.
+#[test]
+fn gradient_pairs_sum_what_stored_values_sum() {
+    use porosph_kernels::iisph::{fluid_volumes, FluidSums};
+    use porosph_kernels::kernel::KernelShape;
+    use porosph_kernels::neighbors::build_gradient_pairs;
+    let h = 0.05;
+    let mut rng = Lcg(11);
+    let cloud: Vec<[f32; 3]> = (0..3000).map(|_| [0.4 * rng.next(), 0.4 * rng.next(), 0.4 * rng.next()]).collect();
+    let lattice: Vec<[f32; 3]> =
+        (0..4096).map(|i| [(i % 16) as f32 * 0.025, (i / 16 % 16) as f32 * 0.025, (i / 256) as f32 * 0.025]).collect();
+    for shape in [KernelShape::CubicSpline, KernelShape::WendlandC2] {
+        let kernel = Kernel::with_shape(shape, h);
+        for pts in [&cloud, &lattice] {
+            let n = pts.len();
+            let (x, y, z, g) = sorted(pts, h);
+            let p = Vel { x: &x, y: &y, z: &z };
+            let val: Vec<f32> = (0..n).map(|_| 1e-6 * (0.5 + rng.next())).collect();
+            let mut with_w = PairLists::default();
+            build_pairs(&mut with_w, p, p, &g, None, &kernel);
+            let (mut without, mut sums) = (PairLists::default(), vec![0.0f32; n]);
+            build_gradient_pairs(&mut without, p, p, &g, None, &kernel, &val, &mut sums);
+            for (a, b) in with_w.used().iter().zip(without.used()) {
+                assert!(b.w.is_empty());
+                assert_eq!((&a.start, &a.j), (&b.start, &b.j));
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!((bits(&a.gx), bits(&a.gy), bits(&a.gz)), (bits(&b.gx), bits(&b.gy), bits(&b.gz)));
+            }
+            // No wall pairs: sigma is the fluid sum alone.
+            let mut none = PairLists::default();
+            let far = [1e3f32; 1];
+            let mut wg = CellGrid::default();
+            wg.build(&[porosph_kernels::grid::morton(porosph_kernels::grid::cell_of(1e3, 1e3, 1e3, 1.0 / h))], h);
+            build_pairs(&mut none, p, Vel { x: &far, y: &far, z: &far }, &wg, None, &kernel);
+            let run = |ff: FluidSums| {
+                let (mut sigma, mut vol) = (vec![0.0f32; n], vec![0.0f32; n]);
+                fluid_volumes(ff, &none, None, &val, &[1.0], &mut sigma, &mut vol);
+                sigma.iter().map(|s| s.to_bits()).collect::<Vec<_>>()
+            };
+            assert_eq!(run(FluidSums::Done(&sums)), run(FluidSums::Pairs(&with_w)), "{shape:?}, {n} points");
+        }
+    }
+}

@@ -232,6 +232,9 @@ pub struct Simulation {
     pub last: StepStats,
     work: Workspace,
     arena: Bump,
+    /// The most bytes of the arena one step has used (its high-water mark:
+    /// what it touches, of [`Bump::allocated_bytes`]).
+    arena_used: usize,
 }
 
 impl Simulation {
@@ -258,6 +261,13 @@ impl Simulation {
             ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
             ("step arena", self.arena.allocated_bytes()),
         ]
+    }
+
+    /// The most bytes of the step arena that a step has used so far (of
+    /// the "step arena" of [`Simulation::memory`], which counts its chunks'
+    /// capacity).
+    pub fn arena_used(&self) -> usize {
+        self.arena_used
     }
 
     /// Bytes of memory held per fluid particle: [`Simulation::memory`]

@@ -5,30 +5,47 @@
 //! PHYSICS.md §2.4), and with solids the solids' Morton order and the pairs
 //! FS, SF, SS, solid-wall and active-wall-solid. Everything it builds lives in the [`Workspace`].
 
+use super::phases;
 use super::step::StepCtx;
 use super::timing::Pass;
 use super::{PairSet, Params, Workspace};
 use crate::backend::passes::{Passes, StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation};
+use porosph_kernels::neighbors::{build_gradient_pairs, build_pairs, compute_keys, sort_permutation};
 use porosph_kernels::soa::Vel;
+
+/// The fluid's rest volumes V0 (pass 1's) and the fluid part of the
+/// density sums, sum_j V0_j W_ij over the pairs FF, which the neighbour
+/// pass computes as it finds the pairs instead of storing W_ij.
+pub(super) struct FluidDensity<'a> {
+    pub v0: &'a [f32],
+    pub own: &'a [f32],
+}
 
 /// Pass 0 for the fluid, walls and solids. The fluid store is reordered
 /// along the Morton curve; solids keep their store order (the pair lists
 /// see them in a sorted copy, `w.solid_perm`).
-pub(super) fn search(
-    cx: &mut StepCtx,
+///
+/// Without a porous partition (`porous` false) the pairs FF keep no kernel
+/// values (16 bytes a pair slot instead of 20): the one sum over them that
+/// needs W is taken here ([`FluidDensity`]). With it, the partition changes
+/// fractions and with them V0 after this pass, so FF keeps W.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn search<'a>(
+    cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
     walls: &WallStore,
     solids: &SolidStore,
     w: &mut Workspace,
     pairs: &mut PairSet,
     backend: &mut dyn Passes,
-) {
+    porous: bool,
+) -> Option<FluidDensity<'a>> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
+    let mut density = None;
     tm.time(Pass::Neighbors, || {
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         gpu_ms += backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
@@ -40,7 +57,15 @@ pub(super) fn search(
         w.fluid_grid.build(&w.keys, support);
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
-        build_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        if porous {
+            build_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
+        } else {
+            let n = fluid.len();
+            let (v0, own) = (arena.alloc_slice_fill_copy(n, 0.0f32), arena.alloc_slice_fill_copy(n, 0.0f32));
+            phases::rest_volumes(p.cell_volume(), fluid, v0);
+            build_gradient_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel, v0, own);
+            density = Some(FluidDensity { v0, own });
+        }
         build_pairs(&mut pairs.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
         if !solids.is_empty() {
             solid_pairs(p, fluid, solids, walls, w, pairs);
@@ -60,6 +85,7 @@ pub(super) fn search(
         gpu_ms += backend.prepare(&w.fluid_grid, walls, shape);
     });
     tm.set_gpu(Pass::Neighbors, gpu_ms);
+    density
 }
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs

@@ -24,9 +24,32 @@ pub(super) struct PhaseState<'a> {
     pub v0: &'a [f32],
 }
 
+/// The rest volumes V0 of [`PhaseState`] alone, into `v0` (for the
+/// neighbour pass, which sums V0_j W_ij as it finds the pairs; the same
+/// values as [`bookkeeping`]'s, bit for bit, where the fractions have not
+/// changed in between).
+pub(super) fn rest_volumes(cell: f32, fluid: &FluidStore, v0: &mut [f32]) {
+    v0.par_chunks_mut(BLOCK).enumerate().for_each(|(b, v0)| {
+        for (q, v) in v0.iter_mut().enumerate() {
+            let i = b * BLOCK + q;
+            let mut a = 0.0;
+            for al in &fluid.alpha {
+                a += al[i];
+            }
+            *v = iisph::row_weight(a) * a * cell;
+        }
+    });
+}
+
 /// Pass 1. With porous solids the inner fractions count in the mass and
-/// the viscosity (P-Eq. 10).
-pub(super) fn bookkeeping<'a>(cx: &mut StepCtx<'a>, fluid: &FluidStore, porous: bool) -> PhaseState<'a> {
+/// the viscosity (P-Eq. 10). `v0`: the rest volumes if the neighbour pass
+/// computed them already ([`rest_volumes`]).
+pub(super) fn bookkeeping<'a>(
+    cx: &mut StepCtx<'a>,
+    fluid: &FluidStore,
+    porous: bool,
+    v0: Option<&'a [f32]>,
+) -> PhaseState<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
     let n = fluid.len();
@@ -34,16 +57,20 @@ pub(super) fn bookkeeping<'a>(cx: &mut StepCtx<'a>, fluid: &FluidStore, porous: 
     let mu = arena.alloc_slice_fill_copy(n, 0.0f32);
     let alpha_f = arena.alloc_slice_fill_copy(n, 0.0f32);
     let mass = arena.alloc_slice_fill_copy(n, 0.0f32);
-    let v0 = arena.alloc_slice_fill_copy(n, 0.0f32);
+    let (given, v0) = match v0 {
+        Some(v0) => (Some(v0), &mut [][..]),
+        None => (None, arena.alloc_slice_fill_copy(n, 0.0f32)),
+    };
+    let write_v0 = given.is_none();
     tm.time(Pass::Phases, || {
         let cell = p.cell_volume();
         rest_density
             .par_chunks_mut(BLOCK)
             .zip(mu.par_chunks_mut(BLOCK))
             .zip(alpha_f.par_chunks_mut(BLOCK))
-            .zip(mass.par_chunks_mut(BLOCK).zip(v0.par_chunks_mut(BLOCK)))
+            .zip(mass.par_chunks_mut(BLOCK).zip(opt_chunks(v0, write_v0, n)))
             .enumerate()
-            .for_each(|(b, (((rho, mu), af), (m, v0)))| {
+            .for_each(|(b, (((rho, mu), af), (m, mut v0)))| {
                 for q in 0..rho.len() {
                     let i = b * BLOCK + q;
                     let (mut r, mut v, mut a) = (0.0, 0.0, 0.0);
@@ -62,9 +89,22 @@ pub(super) fn bookkeeping<'a>(cx: &mut StepCtx<'a>, fluid: &FluidStore, porous: 
                     mu[q] = v;
                     af[q] = a;
                     m[q] = r * cell;
-                    v0[q] = iisph::row_weight(a) * a * cell;
+                    if let Some(v0) = v0.as_deref_mut() {
+                        v0[q] = iisph::row_weight(a) * a * cell;
+                    }
                 }
             });
     });
-    PhaseState { rest_density, mu, alpha_f, mass, v0 }
+    PhaseState { rest_density, mu, alpha_f, mass, v0: given.unwrap_or(v0) }
+}
+
+/// `v`'s blocks where `some`, else `None` for each of the blocks of `n`
+/// particles (`v` is then empty).
+fn opt_chunks(v: &mut [f32], some: bool, n: usize) -> impl IndexedParallelIterator<Item = Option<&mut [f32]>> {
+    use rayon::iter::Either;
+    if some {
+        Either::Left(v.par_chunks_mut(BLOCK).map(Some))
+    } else {
+        Either::Right((0..n.div_ceil(BLOCK)).into_par_iter().map(|_| None))
+    }
 }

@@ -70,6 +70,7 @@ impl Simulation {
             last: StepStats::default(),
             work,
             arena: Bump::new(),
+            arena_used: 0,
         })
     }
 }

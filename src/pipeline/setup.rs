@@ -317,6 +317,7 @@ impl Simulation {
             last: StepStats::default(),
             work,
             arena: Bump::new(),
+            arena_used: 0,
         };
         let v0 = sim.max_speed();
         let (dt, by) = sim.dt_rule(v0, sim.params.drift_speed_estimate());

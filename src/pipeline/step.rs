@@ -57,6 +57,7 @@ impl Simulation {
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
         let cx = StepCtx { p: params, dt, arena, tm: PassTimes::default() };
         let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work, pairs);
+        self.arena_used = self.arena_used.max(arena.allocated_bytes() - arena.chunk_capacity());
         arena.reset();
         if let Some(reason) = backend.take_error() {
             let nan = [f32::NAN; 3];
@@ -263,12 +264,12 @@ fn step_passes<'a>(
 
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
-    neighbours::search(cx, fluid, walls, solids, w, pairs, backend);
+    let density = neighbours::search(cx, fluid, walls, solids, w, pairs, backend, porous);
     let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w, pairs));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
-    let ph = phases::bookkeeping(cx, fluid, porous);
-    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph);
+    let ph = phases::bookkeeping(cx, fluid, porous, density.as_ref().map(|d| d.v0));
+    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph, density.as_ref().map(|d| d.own));
     let pred = prediction::predict(cx, fluid, &pairs.ff, &mut w.visc_coef, &ph);
     st.viscosity_iterations = pred.iterations;
     // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and

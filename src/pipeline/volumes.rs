@@ -10,7 +10,7 @@ use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
 use porosph_kernels::elasticity::RestState;
-use porosph_kernels::iisph::{self, SolidPairs};
+use porosph_kernels::iisph::{self, FluidSums, SolidPairs};
 use porosph_kernels::soa::zeros;
 use porosph_kernels::solid_rows::{self, SolidNeighbours};
 use rayon::prelude::*;
@@ -39,6 +39,9 @@ pub(super) struct Volumes<'a> {
 }
 
 /// Passes 2 and 4a-b; writes the output densities of the fluid and the walls.
+/// `ff_sums`: the fluid part of the fluid rows' sigma, where the neighbour
+/// pass took it (`neighbours::FluidDensity`; else from the pairs FF).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn volumes<'a>(
     cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
@@ -47,6 +50,7 @@ pub(super) fn volumes<'a>(
     w: &Workspace,
     pairs: &PairSet,
     ph: &PhaseState,
+    ff_sums: Option<&[f32]>,
 ) -> Volumes<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
@@ -67,7 +71,8 @@ pub(super) fn volumes<'a>(
     let (sigma_s, vol_s) = (zeros(arena, ns), zeros(arena, ns));
     tm.time(Pass::Densities, || {
         let fs = (ns > 0).then_some(SolidPairs { pairs: &pairs.fs, values: &*v0_s });
-        iisph::fluid_volumes(&pairs.ff, &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
+        let ff = ff_sums.map_or(FluidSums::Pairs(&pairs.ff), FluidSums::Done);
+        iisph::fluid_volumes(ff, &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
         iisph::wall_volumes(&pairs.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
         if ns > 0 {
             let nb = SolidNeighbours {
