@@ -132,7 +132,32 @@ pub fn gather(src: &[f32], idx: &[u32], k: usize) -> F {
             std::mem::transmute::<__m512, F>(v)
         }
     }
-    #[cfg(not(target_feature = "avx512f"))]
+    #[cfg(all(target_feature = "avx2", not(target_feature = "avx512f")))]
+    {
+        use std::arch::x86_64::{
+            __m256, __m256i, _mm256_extracti128_si256, _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_max_epu32,
+            _mm_cvtsi128_si32, _mm_max_epu32, _mm_shuffle_epi32,
+        };
+        // SAFETY: the two loads read the 16 u32 of `ix`; the gathers read
+        // src[ix[l]] only after checking that the largest index is in
+        // bounds (as u32, so also below 2^31 for the gathers' i32 indices
+        // whenever src is shorter than that); F is 16 f32 in 64 bytes, two
+        // __m256 in lane order.
+        unsafe {
+            let lo = _mm256_loadu_si256(ix.as_ptr() as *const __m256i);
+            let hi = _mm256_loadu_si256(ix.as_ptr().add(8) as *const __m256i);
+            let m = _mm256_max_epu32(lo, hi);
+            let m = _mm_max_epu32(_mm256_extracti128_si256::<0>(m), _mm256_extracti128_si256::<1>(m));
+            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
+            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
+            let largest = _mm_cvtsi128_si32(m) as u32 as usize;
+            assert!(largest < src.len() && src.len() <= i32::MAX as usize, "gather index out of bounds");
+            let a = _mm256_i32gather_ps::<4>(src.as_ptr(), lo);
+            let b = _mm256_i32gather_ps::<4>(src.as_ptr(), hi);
+            std::mem::transmute::<[__m256; 2], F>([a, b])
+        }
+    }
+    #[cfg(not(any(target_feature = "avx512f", target_feature = "avx2")))]
     {
         F::from(std::array::from_fn::<f32, LANES, _>(|l| src[ix[l] as usize]))
     }
