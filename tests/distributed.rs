@@ -187,7 +187,7 @@ fn density_pass(
     // dropped), then pass 4a's output density as `pipeline::volumes`.
     let nl = fp.local_len();
     let (mut sigma, mut vol) = (vec![0.0f32; nl], vec![0.0f32; nl]);
-    iisph::fluid_volumes(&ff, &fb, None, &v0_local, &rest, &mut sigma, &mut vol);
+    iisph::fluid_volumes(iisph::FluidSums::Pairs(&ff), &fb, None, &v0_local, &rest, &mut sigma, &mut vol);
     let sigma = plan.owned_of(Kind::Fluid, &sigma);
     let density: Vec<f32> = (0..fluid.len())
         .map(|i| {
