@@ -392,15 +392,14 @@ pub fn conjugate_gradients(
     cg(sys, rhs, v, tol, max_iterations, buf, None)
 }
 
-/// The residual r = rhs - (M A) v that a solve ended with, its rhs and its
-/// answer v, kept for the next solve of the same system
-/// ([`conjugate_gradients_from`]).
+/// What a solve leaves for the next solve of the same system
+/// ([`conjugate_gradients_from`]): its answer v and the product
+/// (M A) v that CG's recurrence implies for it, rhs - r at the end.
 #[derive(Clone, Debug, Default)]
 pub struct CarriedResidual {
     valid: bool,
-    rhs: Vec<Vec3>,
     v: Vec<Vec3>,
-    r: Vec<Vec3>,
+    av: Vec<Vec3>,
 }
 
 impl CarriedResidual {
@@ -412,7 +411,7 @@ impl CarriedResidual {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        12 * (self.rhs.capacity() + self.v.capacity() + self.r.capacity())
+        12 * (self.v.capacity() + self.av.capacity())
     }
 }
 
@@ -420,11 +419,11 @@ impl CarriedResidual {
 /// changing right-hand sides, each warm-started from the last answer (the
 /// bodies' response in the pressure solve's sweeps): where `v` on entry is
 /// bit for bit the answer `carry` kept, the start residual is
-/// r = r_last + (rhs - rhs_last) (linearity: rhs - A v equals
-/// (rhs_last - A v) plus (rhs - rhs_last)), which saves the product that starts a solve, one
-/// of the three of a two-iteration solve. The recurrence's rounding
-/// accumulates over the sweeps; the caller forgets the carry (and so
-/// starts from the true residual) for a solve whose accuracy it needs.
+/// r = rhs - (M A) v with the product the last solve's recurrence ended
+/// with, which saves the product that starts a solve, one of the three of
+/// a two-iteration solve. The recurrence's rounding accumulates over the
+/// sweeps; the caller forgets the carry (and so starts from the true
+/// residual) for a solve whose accuracy it needs.
 #[allow(clippy::too_many_arguments)]
 pub fn conjugate_gradients_from(
     sys: &System,
@@ -474,7 +473,7 @@ fn cg(
     let carried = carry.as_deref().filter(|c| c.valid && c.v.len() == n && c.v == *v);
     if let Some(c) = carried {
         r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
-            *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * (c.r[i] + (rhs[i] - c.rhs[i])) };
+            *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * (rhs[i] - c.av[i]) };
             *p = *r;
         });
         v.par_iter_mut().for_each(|v| *v *= scale);
@@ -514,10 +513,8 @@ fn cg(
     let unscale = 1.0 / scale;
     v.par_iter_mut().for_each(|v| *v *= unscale);
     if let Some(c) = carry {
-        c.r.clear();
-        c.r.extend(r.iter().map(|&r| r * unscale));
-        c.rhs.clear();
-        c.rhs.extend_from_slice(rhs);
+        c.av.resize(n, Vec3::ZERO);
+        c.av.par_iter_mut().enumerate().for_each(|(i, a)| *a = rhs[i] - unscale * r[i]);
         c.v.clear();
         c.v.extend_from_slice(v);
         c.valid = true;
@@ -579,20 +576,40 @@ mod tests {
         }
     }
 
+    /// The issue-34 ball's material on a 6^3 block at rest (d = 1 cm, 500
+    /// kg/m^3, mu 5e4 Pa, lambda 2e4 Pa), for systems at dt 2 ms.
+    struct BallBody {
+        rest: RestState,
+        def: Vec<Deformation>,
+        lame: Vec<Lame>,
+        mass: Vec<f32>,
+    }
+
+    impl BallBody {
+        fn new() -> BallBody {
+            let d = 0.01;
+            let x0 = block([6, 6, 6], d);
+            let n = x0.len();
+            let mass = vec![500.0 * d * d * d; n];
+            let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
+            let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
+            deform(&rest, &x0, &mut rot, &mut def);
+            BallBody { rest, def, lame: vec![Lame { mu: 5e4, lambda: 2e4 }; n], mass }
+        }
+
+        fn system<'a>(&'a self, fixed: &'a [u32]) -> System<'a> {
+            System { rest: &self.rest, def: &self.def, lame: &self.lame, mass: &self.mass, fixed, dt: 0.002 }
+        }
+    }
+
     /// The response of a body at rest (the issue-34 ball: d = 1 cm, 500
     /// kg/m^3, mu 5e4 Pa, lambda 2e4 Pa, dt 2 ms) to a force on three of
     /// its particles, `f` N each way, solved from rest to 1e-4.
     fn response_to(f: f32) -> (Vec<Vec3>, CgStats) {
-        let d = 0.01;
-        let x0 = block([6, 6, 6], d);
-        let n = x0.len();
-        let mass = vec![500.0 * d * d * d; n];
-        let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
-        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
-        deform(&rest, &x0, &mut rot, &mut def);
-        let lame = vec![Lame { mu: 5e4, lambda: 2e4 }; n];
+        let body = BallBody::new();
+        let n = body.mass.len();
         let fixed = vec![0; n];
-        let sys = System { rest: &rest, def: &def, lame: &lame, mass: &mass, fixed: &fixed, dt: 0.002 };
+        let sys = body.system(&fixed);
         let mut rhs = vec![Vec3::ZERO; n];
         for (k, i) in [5usize, 100, 211].into_iter().enumerate() {
             rhs[i] = f * Vec3::new(1.0 + k as f32, -2.0, 0.5 * k as f32);
@@ -690,17 +707,11 @@ mod tests {
     /// r = b - A v); a changed warm start falls back to the product.
     #[test]
     fn carried_residual_continues_a_sequence_of_solves() {
-        let d = 0.01;
-        let x0 = block([6, 6, 6], d);
-        let n = x0.len();
-        let mass = vec![500.0 * d * d * d; n];
-        let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
-        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
-        deform(&rest, &x0, &mut rot, &mut def);
-        let lame = vec![Lame { mu: 5e4, lambda: 2e4 }; n];
+        let body = BallBody::new();
+        let n = body.mass.len();
         let mut fixed = vec![0; n];
         fixed[..36].fill(1);
-        let sys = System { rest: &rest, def: &def, lame: &lame, mass: &mass, fixed: &fixed, dt: 0.002 };
+        let sys = body.system(&fixed);
         let force = |s: usize| -> Vec<Vec3> {
             (0..n).map(|i| 1e-3 * Vec3::new(((i + s) as f32 * 0.3).sin(), -1.0, 0.1 * s as f32)).collect()
         };
