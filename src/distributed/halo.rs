@@ -34,10 +34,10 @@
 //! touch its own.
 
 use super::comm::{from_bytes, Communicator};
-use super::partition::{Kind, Partition};
+use super::partition::{sort, Kind, Partition, Sorted};
 use bytemuck::Pod;
 use porosph_kernels::grid::{cell_of, CellGrid};
-use porosph_kernels::neighbors::{compute_keys, sort_permutation};
+use porosph_kernels::neighbors::compute_keys;
 use porosph_kernels::soa::Vel;
 
 /// Tags of [`HaloPlan::discover`]'s rounds (below the communicator's own),
@@ -197,7 +197,7 @@ impl HaloPlan {
             }
         }
         // 3. Keep those within H of an owned particle; tell the sender.
-        let mine = owned.map(|p| Sorted::new(p, support));
+        let mine = owned.map(|p| sort(p, support));
         let h2 = support * support;
         let mut halo: [Vec<(u64, u32)>; 3] = Default::default();
         let mut recv: [Vec<(usize, usize)>; 3] = Default::default();
@@ -268,28 +268,7 @@ impl HaloPlan {
     }
 }
 
-/// A rank's owned particles of one kind sorted by cell, with their grid:
-/// "is any within H of this point".
-struct Sorted {
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    grid: CellGrid,
-}
-
 impl Sorted {
-    fn new(p: Vel, support: f32) -> Self {
-        let mut keys = vec![0u64; p.len()];
-        compute_keys(p.x, p.y, p.z, 1.0 / support, &mut keys);
-        let (mut scratch, mut perm) = (Vec::new(), Vec::new());
-        sort_permutation(&keys, &mut scratch, &mut perm);
-        let sorted: Vec<u64> = scratch.iter().map(|&(k, _)| k).collect();
-        let mut grid = CellGrid::default();
-        grid.build(&sorted, support);
-        let gather = |v: &[f32]| perm.iter().map(|&i| v[i as usize]).collect();
-        Sorted { x: gather(p.x), y: gather(p.y), z: gather(p.z), grid }
-    }
-
     /// Whether an owned particle i has |x_i - x|^2 < h2 (computed as the
     /// partitioner and the pair search do: owned minus other).
     fn near(&self, x: f32, y: f32, z: f32, h2: f32) -> bool {

@@ -179,17 +179,18 @@ impl Partition {
     }
 }
 
-/// One kind sorted along the Morton curve, with its cell grid.
-struct Sorted {
+/// One kind sorted along the Morton curve, with its cell grid (also the
+/// halo's "is any owned particle within H", `halo::HaloPlan::discover`).
+pub(super) struct Sorted {
     order: Vec<u32>,
     keys: Vec<u64>,
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    grid: CellGrid,
+    pub(super) x: Vec<f32>,
+    pub(super) y: Vec<f32>,
+    pub(super) z: Vec<f32>,
+    pub(super) grid: CellGrid,
 }
 
-fn sort(p: Vel, support: f32) -> Sorted {
+pub(super) fn sort(p: Vel, support: f32) -> Sorted {
     let mut keys = vec![0u64; p.len()];
     compute_keys(p.x, p.y, p.z, 1.0 / support, &mut keys);
     let (mut scratch, mut order) = (Vec::new(), Vec::new());
