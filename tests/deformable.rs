@@ -813,6 +813,15 @@ fn plate_oscillates_slower_in_water_by_its_added_mass() {
 ///   +0.082 at 1.5 s, +0.051 at 2 s), the soak 0.4425 at 1.0 s; too few
 ///   particles ever reach fill 0.6 while emitting to matter, and it slows
 ///   the hold's start.
+/// - Also tried, with the drained boundary (not kept): the same release
+///   over the whole surface band (all of beta_k to alpha_k at fill <= 0.8,
+///   a smoothstep to none at 0.9, where the particle emits), the
+///   exchange done at once at the band: excess +0.034 at 1.5 s, +0.022 at
+///   1.6 s (about 0.25 s), but it overshoots (-0.013 at 2 s, -0.021 at 3
+///   s: the band gives back whatever it holds, whatever the Darcy flux
+///   brings) and the run stops at 3.92 s, a fluid particle at the floor
+///   under the sponge at 5e4 m/s: outer liquid amid the solid and the
+///   floor, the pressure rows `take_inside` exists to remove.
 /// - `take_inside` only where Gamma_k >= 0: tau = 0.436 s (excess +0.028
 ///   at 1.5 s, +0.007 at 2 s); with the drained boundary as well: tau =
 ///   0.273 s (excess +0.054 at 1.5 s, +0.037 at 1.55 s, +0.027 at 1.6 s,
