@@ -28,8 +28,8 @@ use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self};
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::porous::{
-    absorbed_volume, capillary_normal, fluid_phase_terms, pore_gradient, release_outside, take_inside, FluidPhase,
-    FluidPhaseOut, Fractions, SolidPhase,
+    absorbed_volume, capillary_normal, drained_boundary, fluid_phase_terms, pore_gradient, release_outside,
+    take_inside, FluidPhase, FluidPhaseOut, Fractions, SolidPhase,
 };
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use rayon::prelude::*;
@@ -265,6 +265,19 @@ fn pore_state<'a>(
     // u_rk = q_k / e, u_betak = u_rk + v_s.
     let VelMut { x: gx, y: gy, z: gz } = zeros3(arena, ns);
     pore_gradient(&pairs.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
+    // The drained boundary: the outer liquid of each absorbed phase stands
+    // for a surface particle's missing neighbours at p_0k.
+    for k in 0..np {
+        let outer_vol = arena.alloc_slice_fill_iter(fluid.alpha[k].iter().map(|&a| a * cell));
+        let p0k = arena.alloc_slice_fill_iter(
+            (0..ns).map(|s| region(s).and_then(|r| r.phases[k]).map_or(0.0, |ph| ph.outer_pore_pressure)),
+        );
+        let absorbs = arena.alloc_slice_fill_iter(
+            (0..ns).map(|s| (vol[s] > 0.0 && region(s).is_some_and(|r| r.phases[k].is_some())) as u32 as f32),
+        );
+        let g = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
+        drained_boundary(&pairs.sf, outer_vol, p0k, absorbs, pore, g);
+    }
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
         let VelMut { x: qx, y: qy, z: qz } = zeros3(arena, ns);
