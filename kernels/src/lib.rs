@@ -11,6 +11,7 @@ pub mod drucker_prager;
 pub mod elasticity;
 pub mod granular;
 pub mod grid;
+pub mod hydrostatic;
 pub mod iisph;
 pub mod integrate;
 pub mod kernel;

@@ -55,6 +55,9 @@ pub struct Params {
     /// Spectral radius estimate of the Chebyshev semi-iteration over the
     /// Jacobi sweeps, 0 = off (`simulation.chebyshev_radius`).
     pub chebyshev_radius: f32,
+    /// The pressure solve starts from half the last pressure and half the
+    /// hydrostatic estimate (`simulation.pressure_warm_start`).
+    pub hydrostatic_warm_start: bool,
     /// Rest density rho_k of each phase, kg/m^3.
     pub phase_density: Vec<f32>,
     /// Viscosity mu_k of each phase, Pa s.

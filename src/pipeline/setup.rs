@@ -7,8 +7,8 @@ use super::step::explicit_viscosity_bound;
 use super::{PairSet, Params, Simulation, StepStats, Workspace};
 use crate::backend::Passes;
 use crate::scene::{
-    sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, Scene,
-    SolidMaterial, ViscositySolver,
+    sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport,
+    PressureWarmStart, Scene, SolidMaterial, ViscositySolver,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -40,6 +40,7 @@ impl Params {
             max_iterations: s.max_iterations,
             omega: s.omega,
             chebyshev_radius: s.chebyshev_radius,
+            hydrostatic_warm_start: s.pressure_warm_start == PressureWarmStart::Hydrostatic,
             phase_density: scene.phases.iter().map(|p| p.density).collect(),
             phase_viscosity: scene.phases.iter().map(|p| p.viscosity).collect(),
             phase_drift_tau: scene.phases.iter().map(|p| p.drift_tau).collect(),

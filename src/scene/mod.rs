@@ -114,6 +114,21 @@ pub struct Simulation {
     #[serde(default)]
     #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 1))]
     pub chebyshev_radius: f32,
+    /// The warm start of the pressure solve
+    ///
+    /// Where each step's pressure solve starts (PHYSICS.md §2.2): "half"
+    /// (default) half the last step's pressure; "hydrostatic" half of it
+    /// plus half rho |g| depth, the depth under the top of the particle's
+    /// connected column of fluid along gravity
+    /// (kernels/src/hydrostatic.rs): deep pools in a fraction of the
+    /// sweeps (the hydrostatic column 10,814 -> 1,223 sweeps in 1 s;
+    /// Example 1 at d = 4 mm 35.6 -> 2.0 a step), but where the fluid is
+    /// far from hydrostatic (a dam break's free face) the estimate is too
+    /// high and the solve, whose stop criterion counts compression only,
+    /// keeps part of it (Example 1: 0.34 m/s after the first step against
+    /// 0.02; bench/RESULTS.md).
+    #[serde(default = "defaults::pressure_warm_start")]
+    pub pressure_warm_start: PressureWarmStart,
     /// The drift relaxation weight tau in m^2/(Pa s) (= m^3 s/kg)
     ///
     /// tau of P-Eq. 11 (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a
@@ -197,7 +212,7 @@ pub struct Simulation {
 
 /// The defaults of `[simulation]`.
 mod defaults {
-    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, ViscositySolver};
+    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, PressureWarmStart, ViscositySolver};
 
     pub fn gravity() -> [f32; 3] {
         [0.0, -9.81, 0.0]
@@ -244,6 +259,9 @@ mod defaults {
     /// steps at 2 ms instead of 0.72 ms, and its pressure solve then
     /// reaches its 100-iteration cap (steps 4-7, 14) and blows up at step
     /// 19 (bench/RESULTS.md, "Implicit viscosity").
+    pub fn pressure_warm_start() -> PressureWarmStart {
+        PressureWarmStart::Half
+    }
     pub fn viscosity_solver() -> ViscositySolver {
         ViscositySolver::Explicit
     }
@@ -284,6 +302,18 @@ pub enum PhasePressure {
     /// 2 tau p (limiting dt), and stops gravity separation at a mixed
     /// composition.
     Fraction,
+}
+
+/// `pressure_warm_start`: where the pressure solve starts
+/// (`porosph_kernels::hydrostatic`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum PressureWarmStart {
+    /// `"half"` (default): half the last step's pressure.
+    Half,
+    /// `"hydrostatic"`: half the last step's pressure and half rho |g|
+    /// depth (the plain half without gravity along one axis).
+    Hydrostatic,
 }
 
 /// `viscosity_solver`: explicit or implicit viscosity (P-Eq. 23;

@@ -119,7 +119,9 @@ soa! {
         uy: Vec<f32> ["m/s"],
         /// Mixture velocity u_m, z, m/s.
         uz: Vec<f32> ["m/s"],
-        /// IISPH pressure p, Pa (the next step warm-starts from half of it).
+        /// IISPH pressure p, Pa (the next step warm-starts from half of it, or
+        /// from that and half a hydrostatic estimate,
+        /// `porosph_kernels::hydrostatic`).
         pressure: Vec<f32> ["Pa"],
         /// Density m / V of the last step, kg/m^3 (output only).
         density: Vec<f32> ["kg/m^3"],

@@ -1,0 +1,238 @@
+//! The warm start of the pressure solve (pass 4c, PHYSICS.md §2.2): half
+//! the last step's pressure and half a hydrostatic estimate rho_i |g|
+//! depth_i, the depth under the top of the fluid particle's connected
+//! column.
+//!
+//! Why: relaxed Jacobi moves the smooth, long-wavelength pressure modes by
+//! very little a sweep (a deep pool's hydrostatic gradient is the
+//! slowest), so with the plain 0.5 warm start a deep pool spends most of
+//! its sweeps rebuilding the half of rho g depth the warm start dropped
+//! (Example 1 at d = 5 mm: 17.9 sweeps a step against 4.3 with a full warm
+//! start). A full warm start keeps the smooth modes but also lets the ones
+//! the density criterion does not see wander from step to step (the tank
+//! at rest 10x faster, tests/hydrostatic.rs). Half of an estimate that
+//! depends only on the positions keeps the hydrostatic part and anchors it
+//! to the geometry, while the rest of the last pressure still decays by
+//! half a step as before. It is only the solve's starting point: the
+//! solve still runs to its density tolerance.
+//!
+//! Opt-in (`simulation.pressure_warm_start = "hydrostatic"`): where the
+//! fluid is far from hydrostatic the estimate is too high (a dam break's
+//! vertical free face carries rho g depth in the estimate and none in the
+//! flow), and the solve's stop criterion counts compression only, so a
+//! solve that ends after its two minimum sweeps keeps part of the excess
+//! (Example 1 at d = 4 mm: 0.34 m/s after the first step against 0.02,
+//! bench/RESULTS.md). What is next: an estimate that also falls to zero
+//! towards lateral free faces, or a stop criterion that sees over-pressure
+//! without counting every expanding row (both ways at p > 0 took 50-70
+//! sweeps a step there).
+
+use crate::soa::Vel;
+use bumpalo::Bump;
+use rayon::prelude::*;
+
+/// Largest grid, in cells per fluid particle (plus a constant), for which
+/// the estimate is made; a fluid spread thin over a large box (spray)
+/// falls back to the plain half warm start.
+const MAX_CELLS_PER_PARTICLE: usize = 4;
+
+/// The axis gravity points along and the sign of "up" on it, if gravity
+/// has one non-zero component.
+fn up_axis(gravity: [f32; 3]) -> Option<(usize, f32)> {
+    let mut axes = (0..3).filter(|&a| gravity[a] != 0.0);
+    match (axes.next(), axes.next()) {
+        (Some(a), None) => Some((a, -gravity[a].signum())),
+        _ => None,
+    }
+}
+
+/// The columns of the fluid at positions `x` (particle spacing `d`) along
+/// `gravity`, or `None` where gravity is not along one axis or the fluid's
+/// box is too large a grid (then the warm start is the plain half).
+pub fn columns<'a>(x: Vel, gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
+    let (axis, sign) = up_axis(gravity)?;
+    let mut c = Columns::new(x, axis, sign, 2.0 * d, gravity[axis].abs(), d)?;
+    c.top = c.run_tops(x, arena);
+    Some(c)
+}
+
+/// p_i <- 0.5 p_i + 0.5 rho_i |g| depth_i for points at `x` with rest
+/// densities `rho` (kg/m^3), or p_i <- 0.5 p_i without `columns`.
+pub fn warm_start(columns: Option<&Columns>, x: Vel, rho: impl Fn(usize) -> f32 + Sync, p: &mut [f32]) {
+    match columns {
+        Some(c) => p.par_iter_mut().enumerate().for_each(|(i, p)| {
+            *p = 0.5 * *p + 0.5 * rho(i) * c.g * c.depth(x, i);
+        }),
+        None => p.par_iter_mut().for_each(|p| *p *= 0.5),
+    }
+}
+
+/// A dense grid over the fluid's box, each column a run of cells along
+/// "up" (index (a * nb + b) * nu + u), and for every cell the "up"
+/// coordinate of the highest particle of the gap-free run of occupied
+/// cells it belongs to.
+pub struct Columns<'a> {
+    axis: usize,
+    sign: f32,
+    /// The two other axes.
+    across: [usize; 2],
+    cell: f32,
+    /// Lower corner in (across 0, across 1, up) coordinates.
+    origin: [f32; 3],
+    dims: [usize; 3],
+    /// |g|, m/s^2.
+    g: f32,
+    /// Particle spacing, m.
+    d: f32,
+    top: &'a [f32],
+}
+
+impl<'a> Columns<'a> {
+    fn new(x: Vel, axis: usize, sign: f32, cell: f32, g: f32, d: f32) -> Option<Columns<'a>> {
+        let n = x.x.len();
+        if n == 0 {
+            return None;
+        }
+        let across = [(axis + 1) % 3, (axis + 2) % 3];
+        let range = |s: &[f32], f: f32| {
+            s.par_iter()
+                .map(|&v| f * v)
+                .fold(|| (f32::MAX, f32::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
+                .reduce(|| (f32::MAX, f32::MIN), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+        };
+        let r = [range(coord(x, across[0]), 1.0), range(coord(x, across[1]), 1.0), range(coord(x, axis), sign)];
+        if r.iter().any(|&(lo, hi)| !(lo.is_finite() && hi.is_finite())) {
+            return None;
+        }
+        let dims = r.map(|(lo, hi)| ((hi - lo) / cell) as usize + 1);
+        let cells = dims.iter().try_fold(1usize, |a, &b| a.checked_mul(b))?;
+        if cells > MAX_CELLS_PER_PARTICLE * n + 4096 {
+            return None;
+        }
+        Some(Columns { axis, sign, across, cell, origin: r.map(|(lo, _)| lo), dims, g, d, top: &[] })
+    }
+
+    /// The cell of point i of `x` (clamped into the grid: a wall point
+    /// beside or under the fluid takes the nearest column and cell) and
+    /// its "up" coordinate.
+    #[inline]
+    fn cell(&self, x: Vel, i: usize) -> (usize, f32) {
+        let q = [coord(x, self.across[0])[i], coord(x, self.across[1])[i], self.sign * coord(x, self.axis)[i]];
+        // A negative offset saturates to cell 0.
+        let idx = |k: usize| (((q[k] - self.origin[k]) / self.cell) as usize).min(self.dims[k] - 1);
+        ((idx(0) * self.dims[1] + idx(1)) * self.dims[2] + idx(2), q[2])
+    }
+
+    /// The depth of point i of `x` under the top of its column's run plus
+    /// half a spacing (the free surface above the top particle), m; 0 in
+    /// an empty cell or above the top.
+    #[inline]
+    pub fn depth(&self, x: Vel, i: usize) -> f32 {
+        let (c, up) = self.cell(x, i);
+        (self.top[c] - up + 0.5 * self.d).max(0.0)
+    }
+
+    fn run_tops(&self, x: Vel, arena: &'a Bump) -> &'a [f32] {
+        let top = arena.alloc_slice_fill_copy(self.dims.iter().product(), f32::NEG_INFINITY);
+        for i in 0..x.x.len() {
+            let (c, up) = self.cell(x, i);
+            top[c] = top[c].max(up);
+        }
+        top.par_chunks_mut(self.dims[2]).for_each(|col| {
+            for u in (0..col.len().saturating_sub(1)).rev() {
+                if col[u] != f32::NEG_INFINITY && col[u + 1] != f32::NEG_INFINITY {
+                    col[u] = col[u + 1];
+                }
+            }
+        });
+        top
+    }
+}
+
+fn coord<'a>(x: Vel<'a>, k: usize) -> &'a [f32] {
+    match k {
+        0 => x.x,
+        1 => x.y,
+        _ => x.z,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lattice(n: [usize; 3], d: f32, lift: f32) -> [Vec<f32>; 3] {
+        let mut out = [Vec::new(), Vec::new(), Vec::new()];
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    out[0].push((i as f32 + 0.5) * d);
+                    out[1].push((j as f32 + 0.5) * d + lift);
+                    out[2].push((k as f32 + 0.5) * d);
+                }
+            }
+        }
+        out
+    }
+
+    /// A 10 x 30 x 10 block of water at d = 1 cm with gravity -y, from a
+    /// zero last pressure: p = 0.5 rho g depth with depth from the block's
+    /// top (the top particle half a spacing below it), to f32 rounding.
+    #[test]
+    fn a_resting_block_gets_half_its_hydrostatic_pressure() {
+        let (d, g) = (0.01f32, 9.81f32);
+        let x = lattice([10, 30, 10], d, 0.0);
+        let n = x[0].len();
+        let mut p = vec![0.0; n];
+        let arena = Bump::new();
+        let x = Vel { x: &x[0], y: &x[1], z: &x[2] };
+        let c = columns(x, [0.0, -g, 0.0], d, &arena);
+        assert!(c.is_some());
+        warm_start(c.as_ref(), x, |_| 1000.0, &mut p);
+        for (i, (&p, &y)) in p.iter().zip(x.y).enumerate() {
+            let want = 0.5 * 1000.0 * g * (0.3 - y);
+            assert!((p - want).abs() <= 1e-4 * 1000.0 * g * 0.3, "particle {i}: {p} against {want}");
+        }
+    }
+
+    /// Two blocks one above the other with a gap of 3 cm (more than a
+    /// cell of 2d): the lower block's depth is from its own top, not the
+    /// upper block's. Gravity along -z this time, and a last pressure that
+    /// is halved.
+    #[test]
+    fn a_gap_ends_the_column_and_the_last_pressure_is_halved() {
+        let (d, g) = (0.01f32, 9.81f32);
+        let low = lattice([6, 6, 6], d, 0.0);
+        let high = lattice([6, 6, 6], d, 0.09);
+        // Gravity along -z: swap y and z of the lattices.
+        let xs: Vec<f32> = low[0].iter().chain(&high[0]).copied().collect();
+        let ys: Vec<f32> = low[2].iter().chain(&high[2]).copied().collect();
+        let zs: Vec<f32> = low[1].iter().chain(&high[1]).copied().collect();
+        let n = xs.len();
+        let mut p = vec![100.0; n];
+        let arena = Bump::new();
+        let x = Vel { x: &xs, y: &ys, z: &zs };
+        warm_start(columns(x, [0.0, 0.0, -g], d, &arena).as_ref(), x, |_| 1000.0, &mut p);
+        for (i, (&p, &z)) in p.iter().zip(&zs).enumerate() {
+            let top = if z < 0.06 { 0.06 } else { 0.15 };
+            let want = 50.0 + 0.5 * 1000.0 * g * (top - z);
+            assert!((p - want).abs() <= 1e-3 * want, "particle {i} at z {z}: {p} against {want}");
+        }
+    }
+
+    /// No gravity, or gravity not along an axis: the plain half warm start.
+    #[test]
+    fn without_an_axis_of_gravity_it_only_halves() {
+        let xs = lattice([4, 4, 4], 0.01, 0.0);
+        let n = xs[0].len();
+        let arena = Bump::new();
+        for gravity in [[0.0, 0.0, 0.0], [1.0, -9.0, 0.0]] {
+            let mut p = vec![10.0; n];
+            let x = Vel { x: &xs[0], y: &xs[1], z: &xs[2] };
+            let c = columns(x, gravity, 0.01, &arena);
+            assert!(c.is_none());
+            warm_start(c.as_ref(), x, |_| 1000.0, &mut p);
+            assert!(p.iter().all(|&v| v == 5.0));
+        }
+    }
+}
