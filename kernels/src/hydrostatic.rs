@@ -29,6 +29,7 @@
 
 use crate::soa::Vel;
 use bumpalo::Bump;
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Largest grid, in cells per fluid particle (plus a constant), for which
@@ -46,32 +47,28 @@ fn up_axis(gravity: [f32; 3]) -> Option<(usize, f32)> {
     }
 }
 
-/// The columns of the fluid at positions `x` (particle spacing `d`) along
-/// `gravity`, or `None` where gravity is not along one axis or the fluid's
-/// box is too large a grid (then the warm start is the plain half).
-pub fn columns<'a>(x: Vel, gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
-    let (axis, sign) = up_axis(gravity)?;
-    let mut c = Columns::new(x, axis, sign, 2.0 * d, gravity[axis].abs(), d)?;
-    c.top = c.run_tops(x, arena);
-    Some(c)
-}
-
-/// p_i <- 0.5 p_i + 0.5 rho_i |g| depth_i for points at `x` with rest
-/// densities `rho` (kg/m^3), or p_i <- 0.5 p_i without `columns`.
-pub fn warm_start(columns: Option<&Columns>, x: Vel, rho: impl Fn(usize) -> f32 + Sync, p: &mut [f32]) {
+/// p_i <- 0.5 p_i + 0.5 rho_i |g| depth_i for the points i of `p`, at
+/// `at(i)` with rest densities `rho(i)` (kg/m^3), or p_i <- 0.5 p_i
+/// without `columns`. The points are given by index, so that a caller's
+/// subset (the active walls) needs no copy of its positions.
+pub fn warm_start(
+    columns: Option<&Columns>,
+    at: impl Fn(usize) -> Vec3 + Sync,
+    rho: impl Fn(usize) -> f32 + Sync,
+    p: &mut [f32],
+) {
     match columns {
         Some(c) => p.par_iter_mut().enumerate().for_each(|(i, p)| {
-            *p = 0.5 * *p + 0.5 * rho(i) * c.g * c.depth(x, i);
+            *p = 0.5 * *p + 0.5 * rho(i) * c.g * c.depth(at(i));
         }),
         None => p.par_iter_mut().for_each(|p| *p *= 0.5),
     }
 }
 
 /// A dense grid over the fluid's box, each column a run of cells along
-/// "up" (index (a * nb + b) * nu + u), and for every cell the "up"
-/// coordinate of the highest particle of the gap-free run of occupied
-/// cells it belongs to.
-pub struct Columns<'a> {
+/// "up" (index (a * nb + b) * nu + u).
+#[derive(Clone, Copy)]
+struct Grid {
     axis: usize,
     sign: f32,
     /// The two other axes.
@@ -80,15 +77,12 @@ pub struct Columns<'a> {
     /// Lower corner in (across 0, across 1, up) coordinates.
     origin: [f32; 3],
     dims: [usize; 3],
-    /// |g|, m/s^2.
-    g: f32,
-    /// Particle spacing, m.
-    d: f32,
-    top: &'a [f32],
 }
 
-impl<'a> Columns<'a> {
-    fn new(x: Vel, axis: usize, sign: f32, cell: f32, g: f32, d: f32) -> Option<Columns<'a>> {
+impl Grid {
+    /// The grid of cell size `cell` over the points `x`, or `None` where
+    /// there are none or it would be too large.
+    fn new(x: Vel, axis: usize, sign: f32, cell: f32) -> Option<Grid> {
         let n = x.x.len();
         if n == 0 {
             return None;
@@ -109,33 +103,26 @@ impl<'a> Columns<'a> {
         if cells > MAX_CELLS_PER_PARTICLE * n + 4096 {
             return None;
         }
-        Some(Columns { axis, sign, across, cell, origin: r.map(|(lo, _)| lo), dims, g, d, top: &[] })
+        Some(Grid { axis, sign, across, cell, origin: r.map(|(lo, _)| lo), dims })
     }
 
-    /// The cell of point i of `x` (clamped into the grid: a wall point
+    /// The cell of the point at `x` (clamped into the grid: a wall point
     /// beside or under the fluid takes the nearest column and cell) and
     /// its "up" coordinate.
     #[inline]
-    fn cell(&self, x: Vel, i: usize) -> (usize, f32) {
-        let q = [coord(x, self.across[0])[i], coord(x, self.across[1])[i], self.sign * coord(x, self.axis)[i]];
+    fn cell(&self, x: Vec3) -> (usize, f32) {
+        let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
         // A negative offset saturates to cell 0.
         let idx = |k: usize| (((q[k] - self.origin[k]) / self.cell) as usize).min(self.dims[k] - 1);
         ((idx(0) * self.dims[1] + idx(1)) * self.dims[2] + idx(2), q[2])
     }
 
-    /// The depth of point i of `x` under the top of its column's run plus
-    /// half a spacing (the free surface above the top particle), m; 0 in
-    /// an empty cell or above the top.
-    #[inline]
-    pub fn depth(&self, x: Vel, i: usize) -> f32 {
-        let (c, up) = self.cell(x, i);
-        (self.top[c] - up + 0.5 * self.d).max(0.0)
-    }
-
-    fn run_tops(&self, x: Vel, arena: &'a Bump) -> &'a [f32] {
+    /// For every cell, the "up" coordinate of the highest point of `x` in
+    /// the gap-free run of occupied cells it belongs to (-inf if empty).
+    fn run_tops<'a>(&self, x: Vel, arena: &'a Bump) -> &'a [f32] {
         let top = arena.alloc_slice_fill_copy(self.dims.iter().product(), f32::NEG_INFINITY);
         for i in 0..x.x.len() {
-            let (c, up) = self.cell(x, i);
+            let (c, up) = self.cell(Vec3::new(x.x[i], x.y[i], x.z[i]));
             top[c] = top[c].max(up);
         }
         top.par_chunks_mut(self.dims[2]).for_each(|col| {
@@ -146,6 +133,40 @@ impl<'a> Columns<'a> {
             }
         });
         top
+    }
+}
+
+/// The fluid's columns along gravity: a [`Grid`] over the fluid's box and,
+/// for every cell, the "up" coordinate of the highest particle of the
+/// gap-free run of occupied cells it belongs to.
+pub struct Columns<'a> {
+    grid: Grid,
+    /// |g|, m/s^2.
+    g: f32,
+    /// Particle spacing, m.
+    d: f32,
+    top: &'a [f32],
+}
+
+impl<'a> Columns<'a> {
+    /// The columns of the fluid at positions `x` (particle spacing `d`)
+    /// along `gravity`, or `None` where gravity is not along one axis or
+    /// the fluid's box is too large a grid (then the warm start is the
+    /// plain half).
+    pub fn new(x: Vel, gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
+        let (axis, sign) = up_axis(gravity)?;
+        let grid = Grid::new(x, axis, sign, 2.0 * d)?;
+        let top = grid.run_tops(x, arena);
+        Some(Columns { grid, g: gravity[axis].abs(), d, top })
+    }
+
+    /// The depth of the point at `x` under the top of its column's run
+    /// plus half a spacing (the free surface above the top particle), m; 0
+    /// in an empty cell or above the top.
+    #[inline]
+    pub fn depth(&self, x: Vec3) -> f32 {
+        let (c, up) = self.grid.cell(x);
+        (self.top[c] - up + 0.5 * self.d).max(0.0)
     }
 }
 
@@ -160,6 +181,10 @@ fn coord<'a>(x: Vel<'a>, k: usize) -> &'a [f32] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn at(x: Vel, i: usize) -> Vec3 {
+        Vec3::new(x.x[i], x.y[i], x.z[i])
+    }
 
     fn lattice(n: [usize; 3], d: f32, lift: f32) -> [Vec<f32>; 3] {
         let mut out = [Vec::new(), Vec::new(), Vec::new()];
@@ -186,9 +211,9 @@ mod tests {
         let mut p = vec![0.0; n];
         let arena = Bump::new();
         let x = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let c = columns(x, [0.0, -g, 0.0], d, &arena);
+        let c = Columns::new(x, [0.0, -g, 0.0], d, &arena);
         assert!(c.is_some());
-        warm_start(c.as_ref(), x, |_| 1000.0, &mut p);
+        warm_start(c.as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
         for (i, (&p, &y)) in p.iter().zip(x.y).enumerate() {
             let want = 0.5 * 1000.0 * g * (0.3 - y);
             assert!((p - want).abs() <= 1e-4 * 1000.0 * g * 0.3, "particle {i}: {p} against {want}");
@@ -212,7 +237,7 @@ mod tests {
         let mut p = vec![100.0; n];
         let arena = Bump::new();
         let x = Vel { x: &xs, y: &ys, z: &zs };
-        warm_start(columns(x, [0.0, 0.0, -g], d, &arena).as_ref(), x, |_| 1000.0, &mut p);
+        warm_start(Columns::new(x, [0.0, 0.0, -g], d, &arena).as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
         for (i, (&p, &z)) in p.iter().zip(&zs).enumerate() {
             let top = if z < 0.06 { 0.06 } else { 0.15 };
             let want = 50.0 + 0.5 * 1000.0 * g * (top - z);
@@ -229,9 +254,9 @@ mod tests {
         for gravity in [[0.0, 0.0, 0.0], [1.0, -9.0, 0.0]] {
             let mut p = vec![10.0; n];
             let x = Vel { x: &xs[0], y: &xs[1], z: &xs[2] };
-            let c = columns(x, gravity, 0.01, &arena);
+            let c = Columns::new(x, gravity, 0.01, &arena);
             assert!(c.is_none());
-            warm_start(c.as_ref(), x, |_| 1000.0, &mut p);
+            warm_start(c.as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
             assert!(p.iter().all(|&v| v == 5.0));
         }
     }

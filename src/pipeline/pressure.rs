@@ -21,7 +21,7 @@ use crate::backend::passes::{
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64};
-use porosph_kernels::hydrostatic;
+use porosph_kernels::hydrostatic::{self, Columns};
 use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
@@ -68,11 +68,7 @@ pub(super) fn setup<'a>(
     pairs: &'a mut PairSet,
     (ph, vols, pred): (&PhaseState, &Volumes, &Prediction),
 ) -> PressureRows<'a> {
-    let (dt, arena, gravity, h) = (cx.dt, cx.arena, cx.p.gravity, cx.p.h);
-    let hydrostatic = cx.p.hydrostatic_warm_start;
-    // The walls' hydrostatic warm start with the densest phase's rest
-    // density (a wall row mirrors the fluid beside it).
-    let wall_rest_density = cx.p.phase_density.iter().copied().fold(0.0, f32::max);
+    let (dt, arena, p) = (cx.dt, cx.arena, cx.p);
     let tm = &mut cx.tm;
     let (n, na, ns) = (fluid.len(), w.active.len(), solids.len());
     let (src, diag) = (zeros(arena, n), zeros(arena, n));
@@ -148,16 +144,29 @@ pub(super) fn setup<'a>(
         // `pressure_warm_start = "hydrostatic"`, that and half the
         // hydrostatic estimate (`hydrostatic` says why).
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        let columns = if hydrostatic { hydrostatic::columns(x, gravity, h, arena) } else { None };
-        hydrostatic::warm_start(columns.as_ref(), x, |i| ph.rest_density[i], &mut fluid.pressure);
-        let wx = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.x[b as usize]));
-        let wy = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.y[b as usize]));
-        let wz = arena.alloc_slice_fill_iter(w.active.iter().map(|&b| walls.z[b as usize]));
-        for (k, &b) in w.active.iter().enumerate() {
-            p_b[k] = walls.pressure[b as usize];
+        let columns = if p.hydrostatic_warm_start { Columns::new(x, p.gravity, p.h, arena) } else { None };
+        let at = |i: usize| Vec3::new(x.x[i], x.y[i], x.z[i]);
+        hydrostatic::warm_start(columns.as_ref(), at, |i| ph.rest_density[i], &mut fluid.pressure);
+        match &columns {
+            None => {
+                for (k, &b) in w.active.iter().enumerate() {
+                    p_b[k] = 0.5 * walls.pressure[b as usize];
+                }
+            }
+            Some(c) => {
+                for (k, &b) in w.active.iter().enumerate() {
+                    p_b[k] = walls.pressure[b as usize];
+                }
+                // The walls with the densest phase's rest density (a wall
+                // row mirrors the fluid beside it).
+                let rho = p.phase_density.iter().copied().fold(0.0, f32::max);
+                let at = |k: usize| {
+                    let b = w.active[k] as usize;
+                    Vec3::new(walls.x[b], walls.y[b], walls.z[b])
+                };
+                hydrostatic::warm_start(Some(c), at, |_| rho, p_b);
+            }
         }
-        let rho_wall = wall_rest_density;
-        hydrostatic::warm_start(columns.as_ref(), Vel { x: wx, y: wy, z: wz }, |_| rho_wall, p_b);
         walls.pressure.iter_mut().for_each(|x| *x = 0.0);
         for (k, &b) in w.active.iter().enumerate() {
             walls.pressure[b as usize] = p_b[k];
