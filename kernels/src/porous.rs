@@ -84,7 +84,8 @@ pub fn pore_gradient(ss: &PairLists, vol: &[f32], pore_pressure: &[f32], out: Ve
 /// The drained boundary of P-Eq. 19 for phase k, added to `out` (grad
 /// p^pore_s of [`pore_gradient`]): sum_f V^out_fk (p_0k - p^pore_s)
 /// grad W_sf over the solid-fluid pairs `sf`, with V^out_fk = alpha_fk h^3
-/// the outer liquid of phase k next to s (`outer_vol`) and p_0k its pore
+/// the outer liquid of phase k next to s (`alpha` the fluid's volume
+/// fractions alpha_fk, `cell` = h^3, m^3) and p_0k its pore
 /// pressure (`outer_pressure`, per solid particle in the sorted order;
 /// `absorbs[s]` = 0 where s is not porous or its region does not absorb
 /// phase k). [`pore_gradient`]'s difference form leaves the missing
@@ -100,7 +101,7 @@ pub fn pore_gradient(ss: &PairLists, vol: &[f32], pore_pressure: &[f32], out: Ve
 /// interior stayed at +3.9 kPa 0.5 s into the hold, with it +2.1 kPa.
 pub fn drained_boundary(
     sf: &PairLists,
-    outer_vol: &[f32],
+    (alpha, cell): (&[f32], f32),
     outer_pressure: &[f32],
     absorbs: &[f32],
     pore_pressure: &[f32],
@@ -121,7 +122,7 @@ pub fn drained_boundary(
                 let dp = outer_pressure[s] - pore_pressure[s];
                 let mut g = [0.0f32; 3];
                 for p in blk.range(q) {
-                    let c = outer_vol[blk.j[p] as usize] * dp;
+                    let c = (alpha[blk.j[p] as usize] * cell) * dp;
                     g[0] += c * blk.gx[p];
                     g[1] += c * blk.gy[p];
                     g[2] += c * blk.gz[p];

@@ -268,7 +268,6 @@ fn pore_state<'a>(
     // The drained boundary: the outer liquid of each absorbed phase stands
     // for a surface particle's missing neighbours at p_0k.
     for k in 0..np {
-        let outer_vol = arena.alloc_slice_fill_iter(fluid.alpha[k].iter().map(|&a| a * cell));
         let p0k = arena.alloc_slice_fill_iter(
             (0..ns).map(|s| region(s).and_then(|r| r.phases[k]).map_or(0.0, |ph| ph.outer_pore_pressure)),
         );
@@ -276,7 +275,7 @@ fn pore_state<'a>(
             (0..ns).map(|s| (vol[s] > 0.0 && region(s).is_some_and(|r| r.phases[k].is_some())) as u32 as f32),
         );
         let g = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
-        drained_boundary(&pairs.sf, outer_vol, p0k, absorbs, pore, g);
+        drained_boundary(&pairs.sf, (&fluid.alpha[k], cell), p0k, absorbs, pore, g);
     }
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
