@@ -16,10 +16,18 @@
 //!   owners, and the ranges are cut again on whole blocks.
 //! - [`reduce`]: sums combined in global block order, bitwise the single
 //!   process's for any number of ranks.
+//! - [`check`]: the cases of the tests of all the above as functions of a
+//!   communicator, run over the virtual ranks (`tests/distributed.rs`) and
+//!   under `mpirun` (`examples/mpi_check.rs`).
+//! - `mpi` (with `--features mpi`): `MpiComm`, the [`Communicator`] over
+//!   MPI.
 
+pub mod check;
 pub mod comm;
 pub mod halo;
 pub mod migrate;
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod partition;
 pub mod reduce;
 pub mod report;
@@ -28,4 +36,6 @@ pub mod traffic;
 pub use comm::{run_ranks, Communicator};
 pub use halo::HaloPlan;
 pub use migrate::{migrate, Migration};
+#[cfg(feature = "mpi")]
+pub use mpi::MpiComm;
 pub use partition::{partition, Kind, Partition, PartitionError, RankPart, MAX_RANKS};
