@@ -122,6 +122,7 @@ pub fn cuts(n: usize, ranks: usize) -> Vec<std::ops::Range<usize>> {
 /// What [`global_sum`] found.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GlobalSum {
+    /// The digest is of the exact sum's bits and the rank-by-rank sum's.
     pub outcome: Outcome,
     /// Whether the sum rank by rank, then over the ranks, happened to give
     /// the single process's bits too (it should not for every P).
@@ -190,9 +191,11 @@ fn step(sim: &mut Simulation) {
 
 /// The built-in dam break's first step in the single process.
 pub struct DamBreak {
+    /// The scene's parameters (support radius, phase densities).
     pub params: Params,
     /// The fluid as the step's pass 0 sorts it.
     pub sorted: FluidStore,
+    /// The walls.
     pub walls: WallStore,
     /// The densities the step's pass 4a writes (at the positions of
     /// `sorted`).
@@ -200,6 +203,7 @@ pub struct DamBreak {
 }
 
 impl DamBreak {
+    /// Sets the dam break up and runs its first step.
     pub fn new() -> Self {
         let (mut sim, sorted) = sorted(dam_break_scene());
         let (params, walls) = (sim.params.clone(), sim.walls.clone());
@@ -239,7 +243,9 @@ pub fn dam_break_densities(comm: &dyn Communicator, db: &DamBreak) -> Checked {
 
 /// The dam break's steps 50 and 51 in the single process.
 pub struct DamBreak51 {
+    /// The scene's parameters.
     pub params: Params,
+    /// The walls (they never move).
     pub walls: WallStore,
     /// The fluid in step 50's pass 0 order (the ranks' cut).
     pub cut: FluidStore,
@@ -252,6 +258,7 @@ pub struct DamBreak51 {
 }
 
 impl DamBreak51 {
+    /// Runs the dam break's first 51 steps.
     pub fn new() -> Self {
         let mut sim = Simulation::new(dam_break_scene());
         let (params, walls) = (sim.params.clone(), sim.walls.clone());
@@ -503,6 +510,7 @@ pub fn column_bits(s: &FluidStore) -> Vec<(String, Vec<u32>)> {
 
 /// A three-phase fluid moved twice (by [`shake`]) in the single process.
 pub struct ThreePhase {
+    /// The support radius H, m.
     pub support: f32,
     /// The fluid as the first step's pass 0 sorts it.
     pub sorted: FluidStore,

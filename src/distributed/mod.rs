@@ -1,7 +1,8 @@
 //! Distributed runs (issue 19): how the particles are split among ranks,
 //! and how the ranks talk.
 //!
-//! So far, without MPI and without changing the single-process step:
+//! So far, without changing the single-process step (there is no
+//! distributed step yet):
 //! - [`partition`](mod@partition): a rank owns a contiguous range of the
 //!   global Morton order, cut on whole cache blocks, and keeps a halo of
 //!   one support radius; [`traffic`] is the model of the halo bytes a
