@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --mpi
 cargo build --release --features mpi --example mpi_check
-bin=target/release/examples/mpi_check
+bin="${CARGO_TARGET_DIR:-target}/release/examples/mpi_check"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 # Each run well under a minute; the limit only ends a hang.
