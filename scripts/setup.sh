@@ -5,9 +5,20 @@
 # (lavapipe), so `--backend gpu` and the GPU tests run on a machine without
 # a GPU (a real GPU's vendor driver is used instead where installed).
 # Rust/cargo must be present (rustup).
+#
+# `--mpi` also installs what `cargo build --features mpi` needs (issue 19):
+# MPICH (its `mpirun`, and `mpicc`, through which the `mpi` crate finds the
+# library) and libclang for the crate's bindgen.
 set -euo pipefail
+pkgs=(libhdf5-dev pkg-config mesa-vulkan-drivers)
+for arg in "$@"; do
+  case "$arg" in
+    --mpi) pkgs+=(mpich libmpich-dev libclang-dev) ;;
+    *) echo "setup: unknown option $arg (usage: setup.sh [--mpi])" >&2; exit 2 ;;
+  esac
+done
 need=()
-for pkg in libhdf5-dev pkg-config mesa-vulkan-drivers; do
+for pkg in "${pkgs[@]}"; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

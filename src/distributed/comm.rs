@@ -8,11 +8,11 @@
 //! and the number of ranks, point-to-point messages of bytes (and of
 //! `f32`/`u32` through [`bytemuck`]), a barrier, and an all-gather of
 //! variable length (the per-block partial sums of a reproducible
-//! reduction, [`super::reduce`]). Each maps onto one MPI call, so an
-//! implementation over rsmpi can sit behind a `mpi` feature later:
-//! `send_bytes` an immediate (non-blocking) send, `recv_bytes` a receive
-//! from one source with one tag, `barrier` `MPI_Barrier`,
-//! `all_gather_bytes` `MPI_Allgather` of the lengths then
+//! reduction, [`super::reduce`]). Each maps onto one MPI call, as the
+//! implementation over rsmpi behind the `mpi` feature does
+//! (`super::mpi`): `send_bytes` an immediate (non-blocking) send,
+//! `recv_bytes` a receive from one source with one tag, `barrier`
+//! `MPI_Barrier`, `all_gather_bytes` `MPI_Allgather` of the lengths then
 //! `MPI_Allgatherv`.
 
 use std::cell::RefCell;

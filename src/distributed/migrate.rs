@@ -26,7 +26,7 @@
 //! fluid particle's owner) and walls (which never move, but are handed
 //! over as the fluid reaches them) are later slices.
 
-use super::comm::Communicator;
+use super::comm::{from_bytes, Communicator};
 use super::partition::{Kind, PartitionError};
 use crate::store::{Column, ColumnMut, FluidStore, Scratch};
 use porosph_kernels::blocks::{nblocks, BLOCK};
@@ -170,6 +170,19 @@ pub fn concat(parts: &[FluidStore]) -> FluidStore {
     let mut s = empty_like(&parts[0]);
     for p in parts {
         append_rows(&mut s, p, &(0..p.len() as u32).collect::<Vec<_>>());
+    }
+    s
+}
+
+/// Every rank's store in rank order, on every rank: after [`migrate`],
+/// the global store (for checks; it sends every particle everywhere).
+pub fn gather(comm: &dyn Communicator, store: &FluidStore) -> FluidStore {
+    let (f, u) = pack(store, &(0..store.len() as u32).collect::<Vec<_>>());
+    let counts = comm.all_gather_u64(&[store.len() as u64]);
+    let (fs, us) = (comm.all_gather_bytes(bytemuck::cast_slice(&f)), comm.all_gather_bytes(bytemuck::cast_slice(&u)));
+    let mut s = empty_like(store);
+    for ((n, f), u) in counts.iter().zip(&fs).zip(&us) {
+        unpack(&mut s, &from_bytes(f), &from_bytes(u), *n as usize);
     }
     s
 }
