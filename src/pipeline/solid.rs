@@ -315,11 +315,17 @@ impl SolidModel for Peer2018 {
 }
 
 /// Inner iterations of the bodies' response per Jacobi sweep of the
-/// pressure solve (warm-started from the last sweep's answer). Measured on
-/// a dropped stiff block and a floating soft cube: 1, 2 and 4 give the
-/// same sweep counts and stability; 4 costs about a third more solve time
-/// than 2, and 1 leaves more to the exact solve at the end.
-pub const RESPONSE_ITERATIONS_PER_SWEEP: u32 = 2;
+/// pressure solve (warm-started from the last sweep's answer; with the
+/// carried residual each costs one elastic product). Measured on a dropped
+/// stiff block and a floating soft cube: 1, 2 and 4 give the same sweep
+/// counts and stability. On Example 1 (bench/RESULTS.md, "The bodies'
+/// response: one CG iteration a sweep") 1, 2 and 4 give the same sweeps
+/// and speeds step for step; 1 leaves more to the exact solve at the end
+/// (d = 2.4 mm: 40.5 against 36.8 CG iterations a step, prediction
+/// included) but costs the fewest products: 52.6 a step against 61.0 with
+/// 2 (d = 4 mm: 90 against 113, and 170 with 4). 0 (no response within
+/// the sweeps) blows up: the fluid then pushes the bodies as if rigid.
+pub const RESPONSE_ITERATIONS_PER_SWEEP: u32 = 1;
 
 /// The bodies' compliance as the pressure solve asks for it
 /// (`backend::passes::Compliance`): forces and accelerations in the sorted
