@@ -18,6 +18,7 @@ use porosph_kernels::neighbors::{compute_keys, sort_permutation};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows;
+use rayon::prelude::*;
 
 /// Every pass on the CPU.
 #[derive(Clone, Copy, Debug, Default)]
@@ -161,6 +162,7 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
     let mut cheb =
         (s.chebyshev_radius > 0.0).then(|| Chebyshev::new(arena, s.chebyshev_radius, [n, p_active.len(), ns]));
     let mut guard = iisph::Divergence::default();
+    let mut local = iisph::Divergence::local();
     let mut report = SolveReport::default();
     let mut it = 0;
     loop {
@@ -195,13 +197,18 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         if let (Some(c), false) = (cheb.as_mut(), done) {
             c.extrapolate([&mut *p, &mut *p_active, &mut *p_s]);
         }
-        let restart = guard.diverging(worst) && worst > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
+        // The largest row error: a local mode the mean hides
+        // (`iisph::Divergence::local`).
+        let largest = err.par_iter().chain(err_s.par_iter()).copied().reduce(|| 0.0, f32::max);
+        let diverging = guard.diverging(worst) | local.diverging(largest);
+        let restart = diverging && worst > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
         if restart {
             p.copy_from_slice(start[0]);
             p_active.copy_from_slice(start[1]);
             p_s.copy_from_slice(start[2]);
             omega *= iisph::RELAXATION_BACKOFF;
             guard = iisph::Divergence::default();
+            local = iisph::Divergence::local();
             report.restarts += 1;
             cheb = None;
         }
