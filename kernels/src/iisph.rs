@@ -545,7 +545,10 @@ pub struct Divergence {
     above: u32,
     sweeps: u32,
     last: f32,
+    /// Sweeps in a row above twice the best that call it diverging.
     needed: u32,
+    /// The first sweep whose (smoothed) error may be the best.
+    judged_from: u32,
 }
 
 /// The relaxation factor is multiplied by this after a divergence.
@@ -561,14 +564,14 @@ pub const LOCAL_SWEEPS_ABOVE: u32 = 4;
 
 impl Default for Divergence {
     fn default() -> Self {
-        Self { best: f32::INFINITY, above: 0, sweeps: 0, last: 0.0, needed: 2 }
+        Self { best: f32::INFINITY, above: 0, sweeps: 0, last: 0.0, needed: 2, judged_from: 1 }
     }
 }
 
 impl Divergence {
     /// The test for the largest row error (doc above).
     pub fn local() -> Self {
-        Self { needed: LOCAL_SWEEPS_ABOVE, ..Self::default() }
+        Self { needed: LOCAL_SWEEPS_ABOVE, judged_from: 2, ..Self::default() }
     }
 
     /// Takes the mean density error after a sweep; true if the iteration
@@ -583,7 +586,7 @@ impl Divergence {
         // before it to take the larger of), and the largest row error
         // alternates by a factor of about 3 from sweep to sweep (the dam
         // break's 0.032, 0.069, 0.023, 0.066, ...): not a best to judge by.
-        if self.needed == 2 || self.sweeps > 1 {
+        if self.sweeps >= self.judged_from {
             self.best = self.best.min(error);
         }
         self.above = if error > 2.0 * self.best { self.above + 1 } else { 0 };
