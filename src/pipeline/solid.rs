@@ -141,6 +141,9 @@ pub struct Peer2018 {
     /// The last response's residual, for the next sweep's
     /// ([`SolidModel::respond`]'s `continued`).
     carry: CarriedResidual,
+    /// 1 / diag(M A) of this step's system (`System::inverse_diagonal`):
+    /// CG's Jacobi preconditioner and the particles' mobility.
+    jacobi: Vec<f32>,
 }
 
 impl Peer2018 {
@@ -176,6 +179,7 @@ impl Peer2018 {
             rhs: Vec::new(),
             cg: CgBuffers::default(),
             carry: CarriedResidual::default(),
+            jacobi: Vec::new(),
         }
     }
 
@@ -197,6 +201,7 @@ impl Peer2018 {
             mass: &solids.mass,
             fixed: &solids.fixed,
             dt: self.dt,
+            jacobi: Some(&self.jacobi),
         }
     }
 }
@@ -255,8 +260,22 @@ impl SolidModel for Peer2018 {
                 m * v + dt * (m * g + self.force[i])
             }
         }));
-        let sys = System { rest: &self.rest, def: &self.def, lame: &self.lame, mass: &s.mass, fixed: &s.fixed, dt };
-        conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg)
+        let mut jacobi = std::mem::take(&mut self.jacobi);
+        let sys = System {
+            rest: &self.rest,
+            def: &self.def,
+            lame: &self.lame,
+            mass: &s.mass,
+            fixed: &s.fixed,
+            dt,
+            jacobi: None,
+        };
+        sys.inverse_diagonal(&mut jacobi);
+        let sys = System { jacobi: Some(&jacobi), ..sys };
+        let stats =
+            conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg);
+        self.jacobi = jacobi;
+        stats
     }
 
     fn predicted(&self) -> &[Vec3] {
@@ -285,20 +304,8 @@ impl SolidModel for Peer2018 {
     }
 
     fn mobility(&self, s: &SolidStore, out: &mut [f32]) {
-        // The diagonal of M + dt^2 K for a particle moved alone (rest
-        // lattice, no rotation, isotropic average of the direction):
-        // k_i = V_i0 sum_j |w_ij|^2 (4 mu + lambda) / 3.
-        let dt2 = self.dt * self.dt;
-        out.par_iter_mut().enumerate().for_each(|(i, c)| {
-            if s.fixed[i] != 0 {
-                *c = 0.0;
-                return;
-            }
-            let w2: f32 = self.rest.range(i).map(|p| self.rest.w[p].length_squared()).sum();
-            let Lame { mu, lambda } = self.lame[i];
-            let k = self.rest.volume[i] * w2 * (4.0 * mu + lambda) / 3.0;
-            *c = 1.0 / (s.mass[i] + dt2 * k);
-        });
+        // The diagonal of M + dt^2 K of the last prediction's system.
+        out.par_iter_mut().enumerate().for_each(|(i, c)| *c = if s.fixed[i] != 0 { 0.0 } else { self.jacobi[i] });
     }
 
     fn bytes(&self) -> usize {
@@ -311,6 +318,7 @@ impl SolidModel for Peer2018 {
             + 4 * self.von_mises.capacity()
             + self.cg.bytes()
             + self.carry.bytes()
+            + 4 * self.jacobi.capacity()
     }
 }
 
