@@ -872,3 +872,111 @@ fn squeeze_release_time_constant() {
     println!("excess at 1.5 s {e0:+.4}; fit over {} points: tau = {tau:.3} s (Darcy: 0.146 s)", pts.len());
     assert!((tau / 0.146 - 1.0).abs() <= 0.25, "release time constant {tau} s against Darcy's 0.146 s");
 }
+
+/// One fluid layer under a resting block (issue 34 item 4; README,
+/// deformable solids): a soft block of the sponge's elastic constants (mu
+/// 2e4 Pa, lambda 1e4 Pa) at 1,500 kg/m^3, 0.12 x 0.08 x 0.12 m, set one
+/// spacing above the floor (d = 2 cm, max_dt 2 ms, water of 1 Pa s, the
+/// CI contact test's tank and pool), so that one layer of 36 fluid
+/// particles lies between it and the floor; 2 s.
+///
+/// Reference: squeeze-film lubrication. The block's weight in water, W =
+/// (1500 - 1000) g V = 5.65 N, on a film of thickness h between plates of
+/// the block's footprint (taken as the disc of the same area, R = 0.0677
+/// m) makes the film thin at |dh/dt| = 2 W h^3 / (3 pi mu R^4) (Reynolds),
+/// and no liquid in the film moves up or down faster than that. Asked: the
+/// largest vertical speed of the layer's particles still under the block,
+/// over 1.5-2 s, at most that rate at the gap the block rests at (h = the
+/// block's bottom-layer height - d / 2; about 0.04 m/s at h = 9 mm).
+///
+/// FAILS today (measured 2026-12-05 on the branch with
+/// `iisph::Divergence::local`). The layer holds the block until about 1 s
+/// (its bottom layer sinks from 0.030 to 0.026 m), then 21 of the 36
+/// particles are squeezed out sideways within 0.45 s at up to 0.43 m/s and
+/// the bottom layer settles at 0.019 m. The 15 that stay (y = 0.004-0.006
+/// m: 0.71-0.73 d from both the floor's inner wall layer at -0.01 m and
+/// the block's bottom layer; each with 16 wall, 15 solid and 6 fluid
+/// neighbours) move at up to 0.20 m/s over 1.5-2 s (0.12 m/s vertically;
+/// the test prints 0.196 and 0.120), their vertical velocity changing sign
+/// in nearly every step (3,781 sign changes among 14-16 particles in 251
+/// steps): particle 841 at 1.88-1.92 s alternates y
+/// 0.0044 / 0.0041 m, u_y +0.105 / -0.102 m/s, a^p_y -93 / +113 m/s^2.
+/// That acceleration is the pressure of the solve, the neighbouring wall
+/// rows' part (+249 / +383 m/s^2, their mean pressure 880 / 3,625 Pa)
+/// against the block's rows' part (-334 / -262 m/s^2, 2,597 / 1,163 Pa),
+/// the two boundaries' pressures rising in turn from step to step; u* - u
+/// is g dt (viscosity nil), the particle's own row is at p = 5.6 kPa (the
+/// p >= 0 clamp not involved) and at its rest density (V0/V 1.0004), and
+/// there is no drift (one phase). The solve stops after 3-5 sweeps on the
+/// mean errors (fluid 7.0e-4, solid 7.3e-4; the wall rows, not counted,
+/// 5.5e-4) while the largest row errors there are 3.0e-3 (fluid), 3.0e-3
+/// (solid) and 3.4e-3 (wall): at 0.72 d from two boundaries a 0.3 % row
+/// error is a 1e-4 m position error, 0.07 m/s in a 2 ms step. The
+/// configuration has a rest state: with at least 50 sweeps a step from
+/// 1.8 s the layer's largest speed falls to 0.03 m/s within 8 steps and
+/// 0.01 m/s by 1.96 s, particle 841 rests at y = 0.0042 m (wall rows 2,258
+/// Pa, block rows 1,915 Pa, a^p_y = +9.8 m/s^2 against gravity). What the
+/// Jacobi loop misses is a slow mode: the wall and block rows' common
+/// pressure level under the block, which only the block's small mobility
+/// sets. Tried, not kept: counting the wall rows' mean error (no change:
+/// it stays below 1e-3); a full warm start instead of half the last
+/// pressure (0.23 m/s); every row's error below 2e-3 (30 sweeps a step
+/// against 3.9, still 0.41 m/s); below 1e-3 (52 sweeps a step: the layer
+/// keeps all 36 particles and the block its 0.029 m, 0.061 m/s at most
+/// after 0.5 s, but 13 times the sweeps of every step). The squeeze-out
+/// itself is what lubrication asks for (the rate above is 0.46 m/s at the
+/// start's h = 2 cm, falling as h^3); the solve held to 1e-3 on every
+/// row, which keeps the layer and the block where they start, drains no
+/// film at all, so a fix should bring the trapped layer to rest without
+/// holding up the drainage.
+///
+/// The CI contact test (`resting_and_stacked_blocks_stay_at_rest`, no
+/// layer under its blocks) prints 0.227 m/s as its largest speed after
+/// 0.5 s: the same kind of motion in the fluid's bottom layer along the
+/// tank's walls (particle 352 at x = 0.016-0.018 m, y = 0.012-0.014 m, u_y
+/// 0.18 / 0.09 / 0.19 m/s in steps 762-764), not under the blocks.
+#[test]
+#[ignore = "fails (issue 34 item 4 open): the layer's vertical speed 0.12 m/s against the squeeze film's 0.041 m/s; 2 s at d = 2 cm, about 10 s"]
+fn one_fluid_layer_under_a_resting_block_rests() {
+    let d = 0.02f32;
+    let (lo, hi) = ([0.1f32, d, 0.06f32], [0.22f32, d + 0.08, 0.18f32]);
+    let block = soft_box("block", lo, hi, 1500.0);
+    let mut sim = Simulation::new(common::scene_text(&pool(d, 0.002, [0.32, 0.3, 0.24], 0.22, 1.0, &block)));
+    let under = |sim: &Simulation, i: usize, below: f32| {
+        let f = &sim.fluid;
+        f.x[i] > lo[0] && f.x[i] < hi[0] && f.z[i] > lo[2] && f.z[i] < hi[2] && f.y[i] < below
+    };
+    let layer0 = (0..sim.fluid.len()).filter(|&i| under(&sim, i, d)).count();
+    let y0 = sim.solids.y0.iter().copied().fold(f32::MAX, f32::min);
+    let bottom: Vec<usize> = (0..sim.solids.len()).filter(|&i| sim.solids.y0[i] < y0 + 0.25 * d).collect();
+    let (mut fastest, mut vertical, mut flips, mut steps) = (0.0f32, 0.0f32, 0usize, 0usize);
+    let (mut last_uy, mut settle, mut trapped) = (HashMap::<u32, f32>::new(), 0.0f64, 0usize);
+    run_until(&mut sim, 2.0, |sim| {
+        if sim.time < 1.5 {
+            return;
+        }
+        let f = &sim.fluid;
+        let floor = mean(bottom.iter().map(|&i| sim.solids.y[i])) as f32;
+        let h = f64::from(floor - 0.5 * d);
+        // Reynolds' squeeze film: |dh/dt| = 2 W h^3 / (3 pi mu R^4).
+        let (w, r) = (500.0 * 9.81 * 0.12 * 0.08 * 0.12, (0.12f64 * 0.12 / std::f64::consts::PI).sqrt());
+        settle = 2.0 * w * h.powi(3) / (3.0 * std::f64::consts::PI * 1.0 * r.powi(4));
+        let layer: Vec<usize> = (0..f.len()).filter(|&i| under(sim, i, floor - 0.5 * d)).collect();
+        trapped = layer.len();
+        steps += 1;
+        for &i in &layer {
+            fastest = fastest.max((f.ux[i].powi(2) + f.uy[i].powi(2) + f.uz[i].powi(2)).sqrt());
+            vertical = vertical.max(f.uy[i].abs());
+            if let Some(&u) = last_uy.get(&f.id[i]) {
+                flips += (u * f.uy[i] < 0.0) as usize;
+            }
+            last_uy.insert(f.id[i], f.uy[i]);
+        }
+    });
+    println!(
+        "one layer under a resting block: {trapped} of {layer0} particles under it at 2 s; over 1.5-2 s largest speed \
+         {fastest:.3} m/s, vertical {vertical:.3} m/s, {flips} sign changes of u_y in {steps} steps; \
+         squeeze film at the final gap: {settle:.3} m/s"
+    );
+    assert!(f64::from(vertical) <= settle, "vertical speed {vertical} m/s against the squeeze film's {settle} m/s");
+}
