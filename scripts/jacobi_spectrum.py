@@ -17,8 +17,11 @@ an edge and a corner of a lattice half-space, quarter-space and octant
 (`Kernel::flat_wall_gamma` is the face's).
 
 Measured 2026-12-05:
-    cubic    smooth / diag 2.676e-02, largest 2.449; face 0.850, edge 0.720, corner 0.607
-    wendland smooth / diag 2.216e-02, largest 2.028; face 0.876, edge 0.765, corner 0.666
+    cubic    smooth / diag 2.676e-02, largest 2.814; face 0.850, edge 0.720, corner 0.607
+    wendland smooth / diag 2.216e-02, largest 2.605; face 0.876, edge 0.765, corner 0.666
+(the largest over a 12-point grid per axis, at k = (pi/3, pi/3, pi/3) / d
+for both; the first version took the largest of four k points, 2.449 and
+2.028.)
 
     python3 scripts/jacobi_spectrum.py
 """
@@ -76,7 +79,12 @@ def symbol(f, kv):
 for name, f in [("cubic", cubic), ("wendland", wendland)]:
     diag = sum(f(norm(p))[1] ** 2 for p in PTS)
     smooth = symbol(f, (math.pi / 30, 0, 0))
-    ks = [(math.pi, 0, 0), (math.pi, math.pi, 0), (math.pi, math.pi, math.pi), (math.pi / 2, 0, 0)]
+    # The symbol is even in each component and symmetric under their
+    # permutations: a grid over 0 <= k_z <= k_y <= k_x <= pi.
+    n = 12
+    ks = [
+        tuple(math.pi * m / n for m in (i, j, l)) for i in range(n + 1) for j in range(i + 1) for l in range(j + 1)
+    ]
     largest = max(symbol(f, k) for k in ks)
     side = [sum(f(norm(p))[0] for p in PTS if all(p[a] >= 0 for a in range(n))) for n in (1, 2, 3)]
     print(
