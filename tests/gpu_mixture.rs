@@ -43,12 +43,24 @@ fn run(mut sim: Simulation) -> Run {
     Run { particles: f.len(), volumes: sim.phase_volumes(), max_drift, oil }
 }
 
+/// The drift pass on the GPU against the CPU's over 100 steps of the
+/// two-phase dam break. The pressure solve runs on the CPU in both, as
+/// plain relaxed Jacobi (`chebyshev_radius = 0`): the bounds were set with
+/// it, and the test is of the drift pass, not the solve. With the
+/// Chebyshev default the two runs' rounding differences grow much faster
+/// through the splash (measured 2026-12-05, lavapipe: the largest drift
+/// speed at step 100 1.47 % apart against 4.2e-5 with plain Jacobi, phase
+/// volumes 9e-12 and 4e-11 apart either way): a run's sweep count is
+/// decided by the stop criterion, and where two nearly equal runs stop a
+/// sweep apart, the extrapolated iterates differ by more than relaxed
+/// Jacobi's do.
 #[test]
 fn two_phase_run_with_gpu_drift_matches_cpu_for_100_steps() {
     let passes = GpuPasses { neighbors: false, pressure_solve: false, drift: true };
     let Some(gpu) = gpu_common::backend(passes) else { return };
-    let cpu = run(Simulation::new(common::scene_text(common::TWO_PHASE)));
-    let mut sim = Simulation::new(common::scene_text(common::TWO_PHASE));
+    let scene = common::TWO_PHASE.replace("[simulation]\n", "[simulation]\nchebyshev_radius = 0.0\n");
+    let cpu = run(Simulation::new(common::scene_text(&scene)));
+    let mut sim = Simulation::new(common::scene_text(&scene));
     sim.use_gpu(gpu);
     let g = run(sim);
     eprintln!(

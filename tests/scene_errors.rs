@@ -162,6 +162,7 @@ fn minimal_scene_gets_the_defaults() {
     assert_eq!(sim.min_iterations, 2);
     assert_eq!(sim.max_iterations, 100);
     assert_eq!(sim.omega, 0.5);
+    assert_eq!(sim.chebyshev_radius, 0.9);
     assert_eq!(sim.drift_tau, 3e-6, "P Table 2");
     assert_eq!(sim.drift_sigma, 1e-3, "P Table 2");
     assert_eq!(sim.drift_momentum, DriftMomentum::Physical);

@@ -103,15 +103,17 @@ pub struct Simulation {
     /// The Chebyshev semi-iteration of the pressure solve
     ///
     /// An estimate rho of the relaxed Jacobi sweeps' spectral radius, in
-    /// [0, 1); 0 (default) for plain relaxed Jacobi. With rho > 0 each
-    /// sweep after the second is extrapolated from the last two
+    /// [0, 1); 0.9 by default, 0 for plain relaxed Jacobi. With rho > 0
+    /// each sweep after the second is extrapolated from the last two
     /// (kernels/src/chebyshev.rs): deep pools converge in about half of
-    /// the sweeps (0.9: Example 1 at d = 5 mm, 15.5 -> 8.4 per step;
-    /// bench/RESULTS.md), but the pressure's smooth part varies more from
-    /// step to step (tests/hydrostatic.rs: more so from 0.95 on). A smaller
-    /// rho than the true one only accelerates less. Both backends (the GPU
-    /// loop matches the CPU's, tests/gpu_iisph.rs).
-    #[serde(default)]
+    /// the sweeps (Example 1 at the paper's size 12.8 -> 6.9 per step, at
+    /// d = 4 mm to 0.3 s 10.4 -> 5.7 and no step at the sweep cap;
+    /// bench/RESULTS.md), the tank at rest as still as without it, but the
+    /// pressure's smooth part varies more from step to step
+    /// (tests/hydrostatic.rs: more so from 0.95 on). A smaller rho than the
+    /// true one only accelerates less. Both backends (the GPU loop matches
+    /// the CPU's, tests/gpu_iisph.rs).
+    #[serde(default = "defaults::chebyshev_radius")]
     #[schemars(extend("minimum" = 0, "exclusiveMaximum" = 1))]
     pub chebyshev_radius: f32,
     /// The warm start of the pressure solve
@@ -234,6 +236,9 @@ mod defaults {
     }
     pub fn omega() -> f32 {
         0.5
+    }
+    pub fn chebyshev_radius() -> f32 {
+        0.9
     }
     /// P Table 2 (tau in m^2/(Pa s), PHYSICS.md §7).
     pub fn drift_tau() -> f32 {
