@@ -157,7 +157,7 @@ impl Kernel {
 
     /// d^3 sum_j W_ij for a particle i in the inner layer of a flat wall of
     /// two lattice layers (its own layer and the one behind it), spacing
-    /// d = `h`. About 0.725 for the cubic spline with H = 2d.
+    /// d = `h`. About 0.850 for the cubic spline with H = 2d.
     pub fn flat_wall_gamma(&self, h: f32) -> f32 {
         let mut s = 0.0f64;
         for c in [0i32, -1] {

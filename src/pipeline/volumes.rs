@@ -136,11 +136,11 @@ pub(super) fn volumes<'a>(
 /// The rest data of the solid rows of every solid particle (store order),
 /// from the body's rest lattice: with n_i = h^3 sum_j W_ij over the body's
 /// rest neighbours (incl. itself) and gamma the same sum at a flat face
-/// (`Kernel::flat_wall_gamma`, 0.725):
+/// (`Kernel::flat_wall_gamma`, 0.850 for the cubic spline):
 /// - omega_s = min(n_i, gamma), the share of the row's neighbourhood its own
 ///   body fills: a solid is sampled on the fluid's lattice, so at its faces,
 ///   edges and corners this is the share the fluid does not fill at rest
-///   (0.725 at a face, less at an edge or corner: sigma_s = 1 with the fluid
+///   (0.850 at a face, less at an edge or corner: sigma_s = 1 with the fluid
 ///   at rest spacing). Inside the body the full lattice sum (1) is cut to
 ///   gamma: a row there would read any fluid particle at the edge of its
 ///   support as compression, with a diagonal ~ |grad W|^2 near 0, and answer
