@@ -318,8 +318,7 @@ impl System<'_> {
         let dt2 = self.dt * self.dt;
         out.resize(self.mass.len(), 0.0);
         out.par_iter_mut().enumerate().for_each(|(i, c)| {
-            let r = self.rest.start[i] as usize..self.rest.start[i + 1] as usize;
-            let w2: f32 = self.rest.w[r].iter().map(|w| w.length_squared()).sum();
+            let w2: f32 = self.rest.range(i).map(|p| self.rest.w[p].length_squared()).sum();
             let Lame { mu, lambda } = self.lame[i];
             let k = self.rest.volume[i] * w2 * (4.0 * mu + lambda) / 3.0;
             *c = 1.0 / (self.mass[i] + dt2 * k);
@@ -435,10 +434,11 @@ pub struct CgStats {
 
 /// Solves (M A) v = rhs by conjugate gradients, with the Jacobi
 /// preconditioner `sys.jacobi` where there is one ([SPH] uses none; on
-/// Example 1 it takes 11 % fewer iterations, bench/RESULTS.md), filtered so that fixed particles keep the velocity `v` holds
-/// on entry (their residual and search direction are 0). `v` is the warm
-/// start on entry and the solution on exit. Stops at |r| <= tol |rhs| or
-/// after `max_iterations`.
+/// Example 1 it takes 9-13 % fewer iterations, bench/RESULTS.md),
+/// filtered so that fixed particles keep the velocity `v` holds on entry
+/// (their residual and search direction are 0). `v` is the warm start on
+/// entry and the solution on exit. Stops at |r| <= tol |rhs| or after
+/// `max_iterations`.
 ///
 /// The system is solved scaled by a power of two, [`rhs_scale`], that
 /// brings the largest component of the free particles' `rhs` into [1, 2):
