@@ -60,6 +60,8 @@ pub struct TransportScratch<'a> {
     pub least: &'a mut [f32],
     /// The new fractions, particle-major, before they go to `out`.
     pub next: &'a mut [f64],
+    /// Per particle: limited or next to a limited particle.
+    pub near: &'a mut [bool],
 }
 
 /// Pass 12, the conservative transport of every phase (the default; see
@@ -103,26 +105,14 @@ pub fn transport(
     if np == 0 || n == 0 {
         return;
     }
-    let TransportScratch { limit, net, least, next } = scratch;
+    let TransportScratch { limit, net, least, next, near } = scratch;
     outflow(ff, alpha, flux, dt, limit, net, least);
-    let any_limited = least.par_iter().any(|&l| l < 1.0);
+    let near = near_limited(ff, least, near);
     next.par_chunks_mut(BLOCK * np).zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
         for q in 0..o.len() / np {
             let i = b * BLOCK + q;
-            let r = blk.range(q);
-            let near_limit = any_limited
-                && (least[i] < 1.0 || {
-                    let j = &blk.j[..r.end];
-                    let mut p = r.start;
-                    let mut hit = false;
-                    while p < r.end && !hit {
-                        hit = gather(least, j, p).simd_lt(F::splat(1.0)).any();
-                        p += LANES;
-                    }
-                    hit
-                });
             let o = &mut o[q * np..(q + 1) * np];
-            if near_limit {
+            if near[i] {
                 limited_sums(blk, q, i, flux, limit, np, o);
             } else {
                 for (k, o) in o.iter_mut().enumerate() {
@@ -137,6 +127,31 @@ pub fn transport(
     for (k, out) in out.chunks_mut(n).enumerate() {
         out.par_iter_mut().enumerate().for_each(|(i, o)| *o = next[i * np + k]);
     }
+}
+
+/// The particles that go over their pairs again in [`transport`]: those
+/// with a limit below 1 and their neighbours, marked from the limited
+/// particles' own pairs (few, where a phase runs out) into `near`. The
+/// lists are symmetric (j is i's neighbour if i is j's: the same distance
+/// test, negated differences), and an inner list `ffb` holds every
+/// neighbour of a particle that has any (`copy_scaled_where`), which a
+/// limited particle has: only a nonzero pair flux limits. Marking a
+/// particle without a limited neighbour (a padding lane) is harmless: with
+/// every Lambda_ij = 1, [`limited_sums`] repeats the unlimited sum.
+fn near_limited<'a>(ff: &PairLists, least: &[f32], near: &'a mut [bool]) -> &'a [bool] {
+    near.fill(false);
+    if !least.par_iter().any(|&l| l < 1.0) {
+        return near;
+    }
+    let blocks = ff.used();
+    for (i, _) in least.iter().enumerate().filter(|(_, &l)| l < 1.0) {
+        near[i] = true;
+        let blk = &blocks[i / BLOCK];
+        for &j in &blk.j[blk.range(i % BLOCK)] {
+            near[j as usize] = true;
+        }
+    }
+    near
 }
 
 /// The first pass of [`transport`]: per particle and phase, the outflow
@@ -163,38 +178,77 @@ fn outflow(
                 let i = b * BLOCK + q;
                 let r = blk.range(q);
                 let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+                let pairs = Pairs { r, j, gx, gy, gz };
                 for k0 in (0..np).step_by(GROUP) {
                     let g = (np - k0).min(GROUP);
-                    let fi: [[F; 3]; GROUP] = std::array::from_fn(|k| {
-                        if k < g {
-                            [F::splat(flux.x[k0 + k][i]), F::splat(flux.y[k0 + k][i]), F::splat(flux.z[k0 + k][i])]
-                        } else {
-                            [F::ZERO; 3]
-                        }
-                    });
-                    let (mut leave, mut sum_phi) = ([F::ZERO; GROUP], [F::ZERO; GROUP]);
-                    let mut p = r.start;
-                    while p < r.end {
-                        let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
-                        for k in 0..g {
-                            let phi = (gather(flux.x[k0 + k], j, p) + fi[k][0]) * wx
-                                + (gather(flux.y[k0 + k], j, p) + fi[k][1]) * wy
-                                + (gather(flux.z[k0 + k], j, p) + fi[k][2]) * wz;
-                            leave[k] += phi.max(F::ZERO);
-                            sum_phi[k] += phi;
-                        }
-                        p += LANES;
-                    }
-                    for k in 0..g {
-                        let a = alpha[k0 + k][i];
-                        let leaving = dt * sum(leave[k]);
-                        l[q * np + k0 + k] = if leaving > a { a.max(0.0) / leaving } else { 1.0 };
-                        s[q * np + k0 + k] = sum(sum_phi[k]);
+                    let (l, s) = (&mut l[q * np + k0..q * np + k0 + g], &mut s[q * np + k0..q * np + k0 + g]);
+                    let a = &alpha[k0..k0 + g];
+                    match g {
+                        1 => outflow_group::<1>(&pairs, i, k0, a, flux, dt, l, s),
+                        2 => outflow_group::<2>(&pairs, i, k0, a, flux, dt, l, s),
+                        3 => outflow_group::<3>(&pairs, i, k0, a, flux, dt, l, s),
+                        4 => outflow_group::<4>(&pairs, i, k0, a, flux, dt, l, s),
+                        5 => outflow_group::<5>(&pairs, i, k0, a, flux, dt, l, s),
+                        6 => outflow_group::<6>(&pairs, i, k0, a, flux, dt, l, s),
+                        7 => outflow_group::<7>(&pairs, i, k0, a, flux, dt, l, s),
+                        _ => outflow_group::<GROUP>(&pairs, i, k0, a, flux, dt, l, s),
                     }
                 }
                 *m = l[q * np..(q + 1) * np].iter().fold(1.0f32, |m, &x| m.min(x));
             }
         });
+}
+
+/// One particle's pairs: its range `r` in the block's lists.
+struct Pairs<'a> {
+    r: std::ops::Range<usize>,
+    j: &'a [u32],
+    gx: &'a [f32],
+    gy: &'a [f32],
+    gz: &'a [f32],
+}
+
+/// [`outflow`] for the `G` phases `k0..k0 + G` of particle i, whose
+/// fractions are `alpha`: the outflow limits into `l`, the net outflows
+/// into `s`. `G` a constant, so that the per-phase sums stay in registers.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn outflow_group<const G: usize>(
+    pairs: &Pairs,
+    i: usize,
+    k0: usize,
+    alpha: &[&[f32]],
+    flux: PhaseVel,
+    dt: f32,
+    l: &mut [f32],
+    s: &mut [f32],
+) {
+    let Pairs { r, j, gx, gy, gz } = pairs;
+    let fi: [[F; 3]; G] = std::array::from_fn(|k| {
+        [F::splat(flux.x[k0 + k][i]), F::splat(flux.y[k0 + k][i]), F::splat(flux.z[k0 + k][i])]
+    });
+    let fx: [&[f32]; G] = std::array::from_fn(|k| flux.x[k0 + k]);
+    let fy: [&[f32]; G] = std::array::from_fn(|k| flux.y[k0 + k]);
+    let fz: [&[f32]; G] = std::array::from_fn(|k| flux.z[k0 + k]);
+    let (mut leave, mut sum_phi) = ([F::ZERO; G], [F::ZERO; G]);
+    let mut p = r.start;
+    while p < r.end {
+        let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
+        for k in 0..G {
+            let phi = (gather(fx[k], j, p) + fi[k][0]) * wx
+                + (gather(fy[k], j, p) + fi[k][1]) * wy
+                + (gather(fz[k], j, p) + fi[k][2]) * wz;
+            leave[k] += phi.max(F::ZERO);
+            sum_phi[k] += phi;
+        }
+        p += LANES;
+    }
+    for k in 0..G {
+        let a = alpha[k][i];
+        let leaving = dt * sum(leave[k]);
+        l[k] = if leaving > a { a.max(0.0) / leaving } else { 1.0 };
+        s[k] = sum(sum_phi[k]);
+    }
 }
 
 /// sum_j Lambda_ij phi_k,ij of particle i (query q of `blk`) for every

@@ -280,6 +280,7 @@ impl Transport<'_> {
                 net: zeros(arena, np * n),
                 least: zeros(arena, n),
                 next: arena.alloc_slice_fill_copy(np * n, 0.0f64),
+                near: arena.alloc_slice_fill_copy(n, false),
             };
             let lo = arena.alloc_slice_fill_iter(lo.iter().map(|l| l.as_slice()));
             phase_transport::transport(ff, frac, lo, flux, dt, scratch, next);
