@@ -54,6 +54,41 @@ impl PairBlock {
     pub fn range(&self, q: usize) -> std::ops::Range<usize> {
         self.start[q] as usize..self.start[q + 1] as usize
     }
+
+    /// Drops the pairs whose gradient is exactly 0 (each query keeps the
+    /// others in their order; W, where the block stores it, goes with
+    /// them). For lists whose pairs are only ever summed one by one: the
+    /// ranges are no longer whole SIMD vectors.
+    pub fn retain_nonzero_gradients(&mut self) {
+        let with_w = self.w.len() == self.j.len();
+        let mut to = 0;
+        let mut from = self.start.first().map_or(0, |&s| s as usize);
+        for q in 0..self.start.len().saturating_sub(1) {
+            let end = self.start[q + 1] as usize;
+            self.start[q] = to as u32;
+            for k in from..end {
+                if self.gx[k] != 0.0 || self.gy[k] != 0.0 || self.gz[k] != 0.0 {
+                    self.j[to] = self.j[k];
+                    if with_w {
+                        self.w[to] = self.w[k];
+                    }
+                    (self.gx[to], self.gy[to], self.gz[to]) = (self.gx[k], self.gy[k], self.gz[k]);
+                    to += 1;
+                }
+            }
+            from = end;
+        }
+        if let Some(last) = self.start.last_mut() {
+            *last = to as u32;
+        }
+        self.j.truncate(to);
+        if with_w {
+            self.w.truncate(to);
+        }
+        self.gx.truncate(to);
+        self.gy.truncate(to);
+        self.gz.truncate(to);
+    }
 }
 
 /// Neighbour pairs of a query set against a target set, block by block.

@@ -266,3 +266,50 @@ fn gradient_pairs_sum_what_stored_values_sum() {
         }
     }
 }
+
+/// `PairBlock::retain_nonzero_gradients` (the solid rows drop the SS pairs
+/// they scaled to 0): every query keeps exactly its pairs with a nonzero
+/// gradient, in their order, with their j, W and gradient bits, and the
+/// ranges stay contiguous; a query left without pairs gets an empty range.
+#[test]
+fn dropping_zero_gradients_keeps_the_rest_in_order() {
+    use porosph_kernels::neighbors::PairBlock;
+    // Four queries with 3, 0, 5 and 2 pairs; gradients zero where k % 3 == 1
+    // and in every component of query 3's pairs.
+    let counts = [3usize, 0, 5, 2];
+    let mut b = PairBlock::default();
+    b.start.push(0);
+    let mut want: Vec<Vec<(u32, u32, [u32; 3])>> = Vec::new();
+    let mut k = 0u32;
+    for (q, &c) in counts.iter().enumerate() {
+        let mut keep = Vec::new();
+        for _ in 0..c {
+            let zero = k % 3 == 1 || q == 3;
+            let g = if zero { [0.0f32, -0.0, 0.0] } else { [0.5 + k as f32, -(k as f32), 0.0] };
+            let w = 10.0 + k as f32;
+            b.j.push(100 + k);
+            b.w.push(w);
+            b.gx.push(g[0]);
+            b.gy.push(g[1]);
+            b.gz.push(g[2]);
+            if !zero {
+                keep.push((100 + k, w.to_bits(), g.map(f32::to_bits)));
+            }
+            k += 1;
+        }
+        b.start.push(b.j.len() as u32);
+        want.push(keep);
+    }
+    b.retain_nonzero_gradients();
+    assert_eq!(b.start.len(), counts.len() + 1);
+    assert_eq!(b.start[0], 0);
+    for (q, keep) in want.iter().enumerate() {
+        let got: Vec<_> = b
+            .range(q)
+            .map(|p| (b.j[p], b.w[p].to_bits(), [b.gx[p].to_bits(), b.gy[p].to_bits(), b.gz[p].to_bits()]))
+            .collect();
+        assert_eq!(&got, keep, "query {q}");
+    }
+    let total: usize = want.iter().map(Vec::len).sum();
+    assert_eq!((b.j.len(), b.w.len(), b.gx.len(), b.gy.len(), b.gz.len()), (total, total, total, total, total));
+}
