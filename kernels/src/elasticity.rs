@@ -36,8 +36,12 @@ pub struct Lame {
 pub struct RestState {
     /// SS0 as CSR: the neighbours of particle i are `start[i]..start[i+1]`.
     pub start: Vec<u32>,
-    /// Neighbour index j of each pair (ascending per particle, self excluded).
-    pub j: Vec<u32>,
+    /// Neighbour index j of each pair (ascending per particle, self
+    /// excluded), each below `n` ([`RestState::j`]; private so that the
+    /// product's unchecked gathers stay in bounds).
+    j: Vec<u32>,
+    /// The number of particles the pairs were built for.
+    n: usize,
     /// w_ij = V_j0 grad W_ij0 of each pair, 1/m.
     pub w: Vec<Vec3>,
     /// x_j0 - x_i0 of each pair, m.
@@ -59,6 +63,11 @@ impl RestState {
     /// Whether there are no particles.
     pub fn is_empty(&self) -> bool {
         self.volume.is_empty()
+    }
+
+    /// Neighbour index j of each pair (ascending per particle, self excluded).
+    pub fn j(&self) -> &[u32] {
+        &self.j
     }
 
     /// The pair range of particle i.
@@ -120,6 +129,7 @@ impl RestState {
         let mut rest = RestState {
             start,
             j,
+            n,
             w: Vec::new(),
             dx0: Vec::new(),
             volume: vec![0.0; n],
@@ -325,7 +335,8 @@ impl System<'_> {
         });
     }
 
-    /// out = (M A) v; `t` is scratch for T^_i = P^_i RL_i.
+    /// out = (M A) v; `scratch` holds T^_i = P^_i RL_i and v in 16-byte
+    /// lanes.
     ///
     /// This product is most of an elastic body's cost: the CG of the
     /// prediction and the bodies' response in every Jacobi sweep call it.
@@ -336,13 +347,20 @@ impl System<'_> {
     /// rest, so the second gather reads T^_j only. It is the scalar
     /// `Vec3`/`Mat3` form's product to rounding
     /// (`simd_apply_is_the_scalar_apply_to_rounding`).
-    pub fn apply(&self, v: &[Vec3], t: &mut [Mat3A], out: &mut [Vec3]) {
+    pub fn apply(&self, v: &[Vec3], scratch: &mut ProductScratch, out: &mut [Vec3]) {
         let (rest, dt) = (self.rest, self.dt);
+        let n = v.len();
+        scratch.t.resize(n, Mat3A::ZERO);
+        scratch.v.resize(n, Vec3A::ZERO);
+        let ProductScratch { t, v: va } = scratch;
+        // v in 16-byte lanes: one load a pair in the gather below.
+        va.par_iter_mut().zip(v.par_iter()).for_each(|(a, v)| *a = Vec3A::from(*v));
+        let va = &va[..];
         t.par_iter_mut().enumerate().for_each(|(i, t)| {
-            let vi = Vec3A::from(v[i]);
+            let vi = va[i];
             // G = sum_j (v_j - v_i) (x) w_ij, column c the sum of d w_c.
-            let [g0, g1, g2] = rest_sum(rest, i, |j| {
-                let d = Vec3A::from(v[j]) - vi;
+            let [g0, g1, g2] = rest_sum(rest, i, va, |vj| {
+                let d = *vj - vi;
                 [d, d, d]
             });
             let rl = Mat3A::from(self.def[i].rl);
@@ -353,24 +371,47 @@ impl System<'_> {
             let tr = lambda * (eps.x_axis.x + eps.y_axis.y + eps.z_axis.z);
             *t = (eps * (2.0 * mu) + Mat3A::from_diagonal(Vec3::splat(tr))) * rl;
         });
+        let t = &t[..];
         out.par_iter_mut().enumerate().for_each(|(i, o)| {
             if self.fixed[i] != 0 {
                 *o = self.mass[i] * v[i];
                 return;
             }
             // f^_i / V_i0 = T^_i s_i + sum_j T^_j w_ij.
-            let [a, b, c] = rest_sum(rest, i, |j| [t[j].x_axis, t[j].y_axis, t[j].z_axis]);
+            let [a, b, c] = rest_sum(rest, i, t, |tj| [tj.x_axis, tj.y_axis, tj.z_axis]);
             let acc = t[i] * Vec3A::from(rest.wsum[i]) + (a + b + c);
             *o = self.mass[i] * v[i] - dt * rest.volume[i] * Vec3::from(acc);
         });
     }
 }
 
-/// sum_j (x_0(j) w_ij.x, x_1(j) w_ij.y, x_2(j) w_ij.z) over the rest pairs
-/// of particle i: two pairs a round into their own accumulators, so the
-/// fused multiply-adds of one pair do not wait on the last pair's.
+/// The product's per-particle scratch ([`System::apply`]), kept across
+/// calls for its capacity.
+#[derive(Clone, Debug, Default)]
+pub struct ProductScratch {
+    t: Vec<Mat3A>,
+    v: Vec<Vec3A>,
+}
+
+impl ProductScratch {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        48 * self.t.capacity() + 16 * self.v.capacity()
+    }
+}
+
+/// sum_j (x_0(s_j) w_ij.x, x_1(s_j) w_ij.y, x_2(s_j) w_ij.z) over the rest
+/// pairs of particle i, s_j = `src[j]`: two pairs a round into their own
+/// accumulators, so the fused multiply-adds of one pair do not wait on the
+/// last pair's. The gathers `src[j]` are unchecked (a bounds check a pair
+/// was a tenth of the product, bench/RESULTS.md): every j is below
+/// `rest.n` (built so by [`RestState::new`], private), checked against
+/// `src.len()` once a particle.
 #[inline(always)]
-fn rest_sum(rest: &RestState, i: usize, x: impl Fn(usize) -> [Vec3A; 3]) -> [Vec3A; 3] {
+fn rest_sum<S>(rest: &RestState, i: usize, src: &[S], x: impl Fn(&S) -> [Vec3A; 3]) -> [Vec3A; 3] {
+    assert!(src.len() >= rest.n, "rest_sum: {} values for {} particles", src.len(), rest.n);
+    // SAFETY: j < rest.n <= src.len() for every j of `rest.j` (above).
+    let at = |j: u32| x(unsafe { src.get_unchecked(j as usize) });
     let r = rest.range(i);
     let (js, ws) = (&rest.j[r.clone()], &rest.w[r]);
     let add = |c: &mut [Vec3A], x: [Vec3A; 3], w: Vec3| {
@@ -379,14 +420,15 @@ fn rest_sum(rest: &RestState, i: usize, x: impl Fn(usize) -> [Vec3A; 3]) -> [Vec
         c[2] = madd(x[2], Vec3A::splat(w.z), c[2]);
     };
     let mut c = [Vec3A::ZERO; 6];
-    let (pairs, last) = (js.len() / 2, js.len() % 2);
-    for k in 0..pairs {
+    let (jc, wc) = (js.chunks_exact(2), ws.chunks_exact(2));
+    let (jr, wr) = (jc.remainder(), wc.remainder());
+    for (j2, w2) in jc.zip(wc) {
         let (a, b) = c.split_at_mut(3);
-        add(a, x(js[2 * k] as usize), ws[2 * k]);
-        add(b, x(js[2 * k + 1] as usize), ws[2 * k + 1]);
+        add(a, at(j2[0]), w2[0]);
+        add(b, at(j2[1]), w2[1]);
     }
-    if last == 1 {
-        add(&mut c[..3], x(js[2 * pairs] as usize), ws[2 * pairs]);
+    if let (Some(&j), Some(&w)) = (jr.first(), wr.first()) {
+        add(&mut c[..3], at(j), w);
     }
     [c[0] + c[3], c[1] + c[4], c[2] + c[5]]
 }
@@ -411,7 +453,7 @@ pub struct CgBuffers {
     r: Vec<Vec3>,
     p: Vec<Vec3>,
     ap: Vec<Vec3>,
-    t: Vec<Mat3A>,
+    prod: ProductScratch,
     parts: Vec<f64>,
 }
 
@@ -419,7 +461,7 @@ impl CgBuffers {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         12 * (self.r.capacity() + self.p.capacity() + self.ap.capacity())
-            + 48 * self.t.capacity()
+            + self.prod.bytes()
             + 8 * self.parts.capacity()
     }
 }
@@ -518,10 +560,9 @@ fn cg(
     buf.r.resize(n, Vec3::ZERO);
     buf.p.resize(n, Vec3::ZERO);
     buf.ap.resize(n, Vec3::ZERO);
-    buf.t.resize(n, Mat3A::ZERO);
     buf.parts.resize(nblocks(n), 0.0);
     let fixed = sys.fixed;
-    let CgBuffers { r, p, ap, t, parts } = buf;
+    let CgBuffers { r, p, ap, prod, parts } = buf;
     let dot = |parts: &mut [f64], a: &[Vec3], b: &[Vec3]| sum_f64(n, parts, |i| f64::from(a[i].dot(b[i])));
     let scale = rhs_scale(rhs, fixed);
     let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * rhs[i]).length_squared()) });
@@ -547,7 +588,7 @@ fn cg(
         v.par_iter_mut().for_each(|v| *v *= scale);
     } else {
         v.par_iter_mut().for_each(|v| *v *= scale);
-        sys.apply(v, t, ap);
+        sys.apply(v, prod, ap);
         r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
             *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * rhs[i] - ap[i] };
             *p = *r;
@@ -564,7 +605,7 @@ fn cg(
     let goal = f64::from(tol).powi(2) * b2;
     let mut it = 0;
     while it < max_iterations && rr > goal && rr > 0.0 {
-        sys.apply(p, t, ap);
+        sys.apply(p, prod, ap);
         ap.par_iter_mut().enumerate().for_each(|(i, a)| {
             if fixed[i] != 0 {
                 *a = Vec3::ZERO;
@@ -799,8 +840,9 @@ mod tests {
         let v: Vec<Vec3> = (0..n)
             .map(|i| Vec3::new((i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() - 0.5, 0.01 * i as f32))
             .collect();
-        let (mut t, mut out) = (vec![Mat3A::ZERO; n], vec![Vec3::ZERO; n]);
-        sys.apply(&v, &mut t, &mut out);
+        let (mut scratch, mut out) = (ProductScratch::default(), vec![Vec3::ZERO; n]);
+        sys.apply(&v, &mut scratch, &mut out);
+        let t = &scratch.t;
         // The scalar reference.
         let t_ref: Vec<Mat3> = (0..n)
             .map(|i| {
