@@ -16,7 +16,7 @@
 //! threads. Scalar code: solids are few next to fluid particles, and a 3x3
 //! matrix per particle does not fit the SIMD pair layout of the fluid.
 
-use crate::blocks::{max_f32, nblocks, sum_f64, BLOCK};
+use crate::blocks::{combine, max_f32, nblocks, sum_f64, BLOCK};
 use crate::kernel::Kernel;
 use glam::{Mat3, Mat3A, Quat, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -560,10 +560,9 @@ fn cg(
     buf.r.resize(n, Vec3::ZERO);
     buf.p.resize(n, Vec3::ZERO);
     buf.ap.resize(n, Vec3::ZERO);
-    buf.parts.resize(nblocks(n), 0.0);
+    buf.parts.resize(2 * nblocks(n), 0.0);
     let fixed = sys.fixed;
     let CgBuffers { r, p, ap, prod, parts } = buf;
-    let dot = |parts: &mut [f64], a: &[Vec3], b: &[Vec3]| sum_f64(n, parts, |i| f64::from(a[i].dot(b[i])));
     let scale = rhs_scale(rhs, fixed);
     let b2 = sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * rhs[i]).length_squared()) });
     if b2 == 0.0 {
@@ -580,48 +579,45 @@ fn cg(
         return CgStats { iterations: 0, residual: 0.0 };
     }
     let carried = carry.as_deref().filter(|c| c.valid && c.v.len() == n && c.v == *v);
-    if let Some(c) = carried {
-        r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
-            *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * (rhs[i] - c.av[i]) };
-            *p = *r;
-        });
-        v.par_iter_mut().for_each(|v| *v *= scale);
-    } else {
-        v.par_iter_mut().for_each(|v| *v *= scale);
+    v.par_iter_mut().for_each(|v| *v *= scale);
+    if carried.is_none() {
         sys.apply(v, prod, ap);
-        r.par_iter_mut().zip(p.par_iter_mut()).enumerate().for_each(|(i, (r, p))| {
-            *r = if fixed[i] != 0 { Vec3::ZERO } else { scale * rhs[i] - ap[i] };
-            *p = *r;
-        });
     }
-    // z = P r with the Jacobi preconditioner P (1 without one), p = z.
+    // z = P r with the Jacobi preconditioner P (1 without one).
     let z = |i: usize, r: Vec3| sys.jacobi.map_or(r, |c| c[i] * r);
-    if sys.jacobi.is_some() {
-        p.par_iter_mut().zip(r.par_iter()).enumerate().for_each(|(i, (p, r))| *p = z(i, *r));
-    }
-    let rz_of = |parts: &mut [f64], r: &[Vec3]| sum_f64(n, parts, |i| f64::from(r[i].dot(z(i, r[i]))));
-    let mut rr = dot(parts, r, r);
-    let mut rz = if sys.jacobi.is_some() { rz_of(parts, r) } else { rr };
+    // r = rhs - (M A) v (the carried product, or the one just taken), p = z,
+    // and the block sums of r.r and r.z, in one pass.
+    let (rr0, rz0) = update_and_dot(n, r, v, parts, |i, r, _| {
+        *r = if fixed[i] != 0 {
+            Vec3::ZERO
+        } else if let Some(c) = carried {
+            scale * (rhs[i] - c.av[i])
+        } else {
+            scale * rhs[i] - ap[i]
+        };
+        z(i, *r)
+    });
+    p.par_iter_mut().zip(r.par_iter()).enumerate().for_each(|(i, (p, r))| *p = z(i, *r));
+    let mut rr = rr0;
+    let mut rz = if sys.jacobi.is_some() { rz0 } else { rr };
     let goal = f64::from(tol).powi(2) * b2;
     let mut it = 0;
     while it < max_iterations && rr > goal && rr > 0.0 {
         sys.apply(p, prod, ap);
-        ap.par_iter_mut().enumerate().for_each(|(i, a)| {
-            if fixed[i] != 0 {
-                *a = Vec3::ZERO;
-            }
-        });
-        let pap = dot(parts, p, ap);
+        // Fixed rows: (M A) p is 0 there (p is 0 there, so p.(A p) is too).
+        let ap_free = |i: usize| if fixed[i] != 0 { Vec3::ZERO } else { ap[i] };
+        let pap = sum_f64(n, parts, |i| f64::from(p[i].dot(ap_free(i))));
         if pap.is_nan() || pap <= 0.0 {
             break;
         }
         let alpha = (rz / pap) as f32;
-        v.par_iter_mut().zip(r.par_iter_mut()).enumerate().for_each(|(i, (v, r))| {
+        let (rr_new, rz_new) = update_and_dot(n, r, v, parts, |i, r, v| {
             *v += alpha * p[i];
-            *r -= alpha * ap[i];
+            *r -= alpha * ap_free(i);
+            z(i, *r)
         });
-        rr = dot(parts, r, r);
-        let rz_new = if sys.jacobi.is_some() { rz_of(parts, r) } else { rr };
+        rr = rr_new;
+        let rz_new = if sys.jacobi.is_some() { rz_new } else { rr };
         let beta = (rz_new / rz) as f32;
         p.par_iter_mut().zip(r.par_iter()).enumerate().for_each(|(i, (p, r))| *p = z(i, *r) + beta * *p);
         rz = rz_new;
@@ -638,6 +634,32 @@ fn cg(
     }
     let residual = if b2 > 0.0 { (rr / b2).sqrt() as f32 } else { 0.0 };
     CgStats { iterations: it, residual }
+}
+
+/// Updates each r_i (and v_i) by `f` (which returns z_i = P r_i) and sums r.r and
+/// r.z: one pass, the sums in the blocks and order of [`sum_f64`] (so the
+/// same bits as two `sum_f64` passes after the update). `parts` needs
+/// 2 [`nblocks`]`(n)` entries.
+fn update_and_dot(
+    n: usize,
+    r: &mut [Vec3],
+    v: &mut [Vec3],
+    parts: &mut [f64],
+    f: impl Fn(usize, &mut Vec3, &mut Vec3) -> Vec3 + Sync,
+) -> (f64, f64) {
+    let nb = nblocks(n);
+    let (prr, prz) = parts[..2 * nb].split_at_mut(nb);
+    let chunks = r[..n].par_chunks_mut(BLOCK).zip(v[..n].par_chunks_mut(BLOCK));
+    chunks.zip(prr.par_iter_mut().zip(prz.par_iter_mut())).enumerate().for_each(|(b, ((rc, vc), (srr, srz)))| {
+        let (mut arr, mut arz) = (0.0f64, 0.0f64);
+        for (q, (r, v)) in rc.iter_mut().zip(vc.iter_mut()).enumerate() {
+            let z = f(b * BLOCK + q, r, v);
+            arr += f64::from(r.dot(*r));
+            arz += f64::from(r.dot(z));
+        }
+        (*srr, *srz) = (arr, arz);
+    });
+    (combine(prr), combine(prz))
 }
 
 /// 2^-k with 2^k <= max |rhs_i| (components, free particles) < 2^(k+1),

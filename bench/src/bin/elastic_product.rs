@@ -4,7 +4,11 @@
 //! once an iteration and the bodies' response twice a Jacobi sweep, about a
 //! third of Example 1's step (bench/RESULTS.md). Prints the least and the
 //! median time a call over `--repeat` calls, and a checksum of the result
-//! (the same for two builds whose products agree bit for bit).
+//! (the same for two builds whose products agree bit for bit). Then the
+//! Jacobi-preconditioned conjugate gradients of the prediction
+//! (`conjugate_gradients`) run `--cg-iterations` iterations (tolerance 0),
+//! a tenth of `--repeat` times: the least time an iteration, and what of it
+//! is not the product (the CG's vector passes and reductions).
 //!
 //! ```sh
 //! cargo build --release -p porosph-bench --bin elastic_product
@@ -16,23 +20,26 @@
 //! paper's size (155k).
 
 use glam::{Mat3, Quat, Vec3};
-use porosph_kernels::elasticity::{deform, Deformation, Lame, ProductScratch, RestState, System};
+use porosph_kernels::elasticity::{
+    conjugate_gradients, deform, CgBuffers, Deformation, Lame, ProductScratch, RestState, System,
+};
 use porosph_kernels::kernel::Kernel;
 use std::time::Instant;
 
 fn main() {
-    let (mut threads, mut size, mut repeat) = (2usize, [37usize, 37, 25], 300usize);
+    let (mut threads, mut size, mut repeat, mut cg_iterations) = (2usize, [37usize, 37, 25], 300usize, 20u32);
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
         let v = it.next().unwrap_or_else(|| panic!("{k} needs a value"));
         match k.as_str() {
             "--threads" => threads = v.parse().expect("--threads: a number"),
             "--repeat" => repeat = v.parse().expect("--repeat: a number"),
+            "--cg-iterations" => cg_iterations = v.parse().expect("--cg-iterations: a number"),
             "--size" => {
                 let n: Vec<usize> = v.split(',').map(|s| s.parse().expect("--size: NX,NY,NZ")).collect();
                 size = [n[0], n[1], n[2]];
             }
-            _ => panic!("unknown argument {k} (--threads, --size NX,NY,NZ, --repeat)"),
+            _ => panic!("unknown argument {k} (--threads, --size NX,NY,NZ, --repeat, --cg-iterations)"),
         }
     }
     let d = 0.004f32;
@@ -76,6 +83,26 @@ fn main() {
             ms[0],
             ms[ms.len() / 2],
             ms[0] * 1e6 / pairs as f64
+        );
+        let mut jacobi = Vec::new();
+        sys.inverse_diagonal(&mut jacobi);
+        let sys = System { jacobi: Some(&jacobi), ..sys };
+        let mut buf = CgBuffers::default();
+        let rhs: Vec<Vec3> = v.iter().map(|&v| mass[0] * v + Vec3::new(0.0, -1e-5, 0.0)).collect();
+        let (mut cg_ms, mut iterations, mut sol) = (f64::INFINITY, 0, Vec::new());
+        for _ in 0..(repeat / 10).max(1) {
+            sol.clear();
+            sol.resize(n, Vec3::ZERO);
+            let t = Instant::now();
+            let stats = conjugate_gradients(&sys, &rhs, &mut sol, 0.0, cg_iterations, &mut buf);
+            cg_ms = cg_ms.min(t.elapsed().as_secs_f64() * 1e3);
+            iterations = stats.iterations;
+        }
+        let sum: f64 = sol.iter().map(|o| f64::from(o.x) + f64::from(o.y) + f64::from(o.z)).sum();
+        let per = cg_ms / f64::from(iterations.max(1));
+        println!(
+            "conjugate gradients, {iterations} iterations: least {cg_ms:.3} ms, {per:.3} ms an iteration, {:.3} ms of it besides the product; checksum {sum:.9e}",
+            per - ms[0]
         );
     });
 }
