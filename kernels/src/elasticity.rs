@@ -578,16 +578,19 @@ fn cg(
         }
         return CgStats { iterations: 0, residual: 0.0 };
     }
-    let carried = carry.as_deref().filter(|c| c.valid && c.v.len() == n && c.v == *v);
-    v.par_iter_mut().for_each(|v| *v *= scale);
+    let carried = carry.as_deref().filter(|c| c.valid && c.v.len() == n && c.v.par_iter().eq(v.par_iter()));
     if carried.is_none() {
+        v.par_iter_mut().for_each(|v| *v *= scale);
         sys.apply(v, prod, ap);
     }
     // z = P r with the Jacobi preconditioner P (1 without one).
     let z = |i: usize, r: Vec3| sys.jacobi.map_or(r, |c| c[i] * r);
     // r = rhs - (M A) v (the carried product, or the one just taken), p = z,
     // and the block sums of r.r and r.z, in one pass.
-    let (rr0, rz0) = update_and_dot(n, r, v, parts, |i, r, _| {
+    let (rr0, rz0) = update_and_dot(n, r, v, parts, |i, r, v| {
+        if carried.is_some() {
+            *v *= scale;
+        }
         *r = if fixed[i] != 0 {
             Vec3::ZERO
         } else if let Some(c) = carried {
@@ -618,19 +621,32 @@ fn cg(
         });
         rr = rr_new;
         let rz_new = if sys.jacobi.is_some() { rz_new } else { rr };
+        it += 1;
+        if it >= max_iterations || rr <= goal || rr <= 0.0 {
+            // The loop ends: the next direction would not be used.
+            break;
+        }
         let beta = (rz_new / rz) as f32;
         p.par_iter_mut().zip(r.par_iter()).enumerate().for_each(|(i, (p, r))| *p = z(i, *r) + beta * *p);
         rz = rz_new;
-        it += 1;
     }
     let unscale = 1.0 / scale;
-    v.par_iter_mut().for_each(|v| *v *= unscale);
-    if let Some(c) = carry {
-        c.av.resize(n, Vec3::ZERO);
-        c.av.par_iter_mut().enumerate().for_each(|(i, a)| *a = rhs[i] - unscale * r[i]);
-        c.v.clear();
-        c.v.extend_from_slice(v);
-        c.valid = true;
+    match carry {
+        Some(c) => {
+            // v unscaled, and what the next solve of this system starts from
+            // (v and the product its recurrence implies), in one pass.
+            c.av.resize(n, Vec3::ZERO);
+            c.v.resize(n, Vec3::ZERO);
+            (v.par_iter_mut(), c.v.par_iter_mut(), c.av.par_iter_mut()).into_par_iter().enumerate().for_each(
+                |(i, (v, cv, a))| {
+                    *v *= unscale;
+                    *cv = *v;
+                    *a = rhs[i] - unscale * r[i];
+                },
+            );
+            c.valid = true;
+        }
+        None => v.par_iter_mut().for_each(|v| *v *= unscale),
     }
     let residual = if b2 > 0.0 { (rr / b2).sqrt() as f32 } else { 0.0 };
     CgStats { iterations: it, residual }

@@ -366,10 +366,11 @@ impl Compliance for BodyResponse<'_> {
         if exact {
             self.stats = stats;
         }
-        for (k, &i) in self.perm.iter().enumerate() {
-            let a = self.accel[i as usize];
-            (accel.x[k], accel.y[k], accel.z[k]) = (a.x, a.y, a.z);
-        }
+        let src = &*self.accel;
+        (accel.x, accel.y, accel.z, self.perm).into_par_iter().for_each(|(x, y, z, &i)| {
+            let a = src[i as usize];
+            (*x, *y, *z) = (a.x, a.y, a.z);
+        });
     }
 }
 
