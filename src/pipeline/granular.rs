@@ -336,8 +336,8 @@ impl SolidModel for Mixed {
         self.elastic.respond(solids, force, accel, tolerance, max_iterations, continued)
     }
 
-    fn mobility(&self, solids: &SolidStore, out: &mut [f32]) {
-        self.elastic.mobility(solids, out)
+    fn mobility(&self, solids: &SolidStore, contact: &[u32], out: &mut [f32]) {
+        self.elastic.mobility(solids, contact, out)
     }
 
     fn wall_contact(&self, solids: &mut SolidStore, near: &Current) {

@@ -20,7 +20,7 @@ use crate::backend::passes::{
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
-use porosph_kernels::blocks::{nblocks, sum_f64};
+use porosph_kernels::blocks::{nblocks, sum_f64, BLOCK};
 use porosph_kernels::hydrostatic::{self, Columns};
 use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
@@ -78,7 +78,22 @@ pub(super) fn setup<'a>(
     if ns > 0 {
         let v = model.predicted();
         let c = zeros(arena, ns);
-        model.mobility(solids, c);
+        // The particles with a pair of the solve outside their body (store
+        // order): a fluid or wall pair, or another body's particle.
+        let contact = arena.alloc_slice_fill_copy(ns, 0u32);
+        let body = vols.body_solid;
+        let blocks = pairs.sf.used().iter().zip(pairs.sb.used()).zip(pairs.ss.used()).enumerate();
+        for (b, ((sf, sb), ss)) in blocks {
+            for q in 0..BLOCK.min(ns - b * BLOCK) {
+                let k = b * BLOCK + q;
+                let walls = vols.no_walls_solid[k] == 0 && !sb.range(q).is_empty();
+                let others = ss.range(q).any(|m| body[ss.j[m] as usize] != body[k]);
+                if !sf.range(q).is_empty() || walls || others {
+                    contact[w.solid_perm[k] as usize] = 1;
+                }
+            }
+        }
+        model.mobility(solids, contact, c);
         for (k, &i) in w.solid_perm.iter().enumerate() {
             let i = i as usize;
             (usx[k], usy[k], usz[k]) = (v[i].x, v[i].y, v[i].z);

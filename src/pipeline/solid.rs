@@ -19,6 +19,7 @@ use porosph_kernels::elasticity::{
 use porosph_kernels::granular::Walls;
 use porosph_kernels::kernel::Kernel;
 use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::rigid_modes::RigidModes;
 use porosph_kernels::soa::{Vel, VelMut};
 use rayon::prelude::*;
 
@@ -79,8 +80,10 @@ pub trait SolidModel: Send + Sync {
 
     /// An estimate of each particle's mobility, d a_i / d F_i of
     /// [`SolidModel::respond`] (1/kg; 0 for fixed particles), for the
-    /// pressure solve's diagonals.
-    fn mobility(&self, solids: &SolidStore, out: &mut [f32]);
+    /// pressure solve's diagonals; `contact` (store order) is 1 for the
+    /// particles with a pair of the solve outside their body, the rows a
+    /// body's motion couples.
+    fn mobility(&self, solids: &SolidStore, contact: &[u32], out: &mut [f32]);
 
     /// After the step's velocities are set ([`finish`]): a model whose
     /// walls are not in the pressure solve keeps its particles out of them
@@ -144,6 +147,13 @@ pub struct Peer2018 {
     /// 1 / diag(M A) of this step's system (`System::inverse_diagonal`):
     /// CG's Jacobi preconditioner and the particles' mobility.
     jacobi: Vec<f32>,
+    /// The elastic body of each particle (store order).
+    group: Vec<u32>,
+    /// The current surface normal direction of each particle (store order).
+    normal: Vec<Vec3>,
+    /// The free bodies' rigid motions at this step's positions: the coarse
+    /// space of CG's preconditioner (`porosph_kernels::rigid_modes`).
+    modes: RigidModes,
 }
 
 impl Peer2018 {
@@ -180,6 +190,9 @@ impl Peer2018 {
             cg: CgBuffers::default(),
             carry: CarriedResidual::default(),
             jacobi: Vec::new(),
+            group: group.to_vec(),
+            normal: Vec::new(),
+            modes: RigidModes::default(),
         }
     }
 
@@ -202,6 +215,7 @@ impl Peer2018 {
             fixed: &solids.fixed,
             dt: self.dt,
             jacobi: Some(&self.jacobi),
+            coarse: Some(&self.modes),
         }
     }
 }
@@ -260,6 +274,11 @@ impl SolidModel for Peer2018 {
                 m * v + dt * (m * g + self.force[i])
             }
         }));
+        // A push from outside acts along the surface normal: the rest
+        // s_i = sum_j w_ij (inward at the surface), rotated.
+        self.normal.clear();
+        self.normal.extend(self.rot.iter().zip(&self.rest.wsum).map(|(q, w)| *q * *w));
+        self.modes.update(&self.group, &s.fixed, &s.mass, &self.x, &self.normal);
         let mut jacobi = std::mem::take(&mut self.jacobi);
         let sys = System {
             rest: &self.rest,
@@ -269,9 +288,10 @@ impl SolidModel for Peer2018 {
             fixed: &s.fixed,
             dt,
             jacobi: None,
+            coarse: None,
         };
         sys.inverse_diagonal(&mut jacobi);
-        let sys = System { jacobi: Some(&jacobi), ..sys };
+        let sys = System { jacobi: Some(&jacobi), coarse: Some(&self.modes), ..sys };
         let stats =
             conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg);
         self.jacobi = jacobi;
@@ -303,9 +323,12 @@ impl SolidModel for Peer2018 {
         stats
     }
 
-    fn mobility(&self, s: &SolidStore, out: &mut [f32]) {
-        // The diagonal of M + dt^2 K of the last prediction's system.
+    fn mobility(&self, s: &SolidStore, contact: &[u32], out: &mut [f32]) {
+        // The diagonal of M + dt^2 K of the last prediction's system, raised
+        // to the body-wide coupling of its rigid motion (the response sees
+        // it through CG's coarse space).
         out.par_iter_mut().enumerate().for_each(|(i, c)| *c = if s.fixed[i] != 0 { 0.0 } else { self.jacobi[i] });
+        self.modes.couple_mobility(contact, out);
     }
 
     fn bytes(&self) -> usize {
@@ -319,6 +342,9 @@ impl SolidModel for Peer2018 {
             + self.cg.bytes()
             + self.carry.bytes()
             + 4 * self.jacobi.capacity()
+            + 4 * self.group.capacity()
+            + 12 * self.normal.capacity()
+            + self.modes.bytes()
     }
 }
 

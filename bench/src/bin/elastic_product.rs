@@ -71,7 +71,7 @@ fn main() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     pool.install(|| {
         deform(&rest, &x, &mut rot, &mut def);
-        let sys = System { rest: &rest, def: &def, lame: &lame, mass: &mass, fixed: &fixed, dt: 0.002, jacobi: None };
+        let sys = System { rest: &rest, def: &def, lame: &lame, mass: &mass, fixed: &fixed, dt: 0.002, jacobi: None, coarse: None };
         let (mut scratch, mut out) = (ProductScratch::default(), vec![Vec3::ZERO; n]);
         let mut ms = Vec::with_capacity(repeat);
         for _ in 0..repeat.max(1) {
