@@ -18,7 +18,7 @@
 
 use crate::blocks::{combine, max_f32, nblocks, sum_f64, BLOCK};
 use crate::kernel::Kernel;
-use crate::rigid_modes::{Part, RigidModes};
+use crate::rigid_modes::{CoarseScratch, RigidModes};
 use glam::{Mat3, Mat3A, Quat, Vec3, Vec3A};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -462,14 +462,14 @@ pub struct CgBuffers {
     z: Vec<Vec3>,
     prod: ProductScratch,
     parts: Vec<f64>,
-    coarse: Vec<Part>,
+    coarse: CoarseScratch,
 }
 
 impl CgBuffers {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         12 * (self.r.capacity() + self.p.capacity() + self.ap.capacity() + self.z.capacity())
-            + self.coarse.iter().map(|p| 56 * p.capacity()).sum::<usize>()
+            + self.coarse.bytes()
             + self.prod.bytes()
             + 8 * self.parts.capacity()
     }

@@ -58,7 +58,30 @@ pub struct RigidModes {
 }
 
 /// A block's sums: per coarse body present in it, (body, sum f, sum xi x f).
-pub type Part = Vec<(u32, DVec3, DVec3)>;
+type Part = Vec<(u32, DVec3, DVec3)>;
+
+/// Scratch of [`RigidModes::precondition`], kept by the caller across
+/// calls so that the conjugate gradients' iterations allocate nothing.
+#[derive(Clone, Debug, Default)]
+pub struct CoarseScratch {
+    /// Per block of particles, its bodies' sums.
+    parts: Vec<Part>,
+    /// Per coarse body, (sum f, sum xi x f).
+    sums: Vec<(DVec3, DVec3)>,
+    /// Per coarse body, the rigid response (t, w) to r and to M y.
+    u: Vec<(Vec3, Vec3)>,
+    my: Vec<(Vec3, Vec3)>,
+}
+
+impl CoarseScratch {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.parts.iter().map(|p| 56 * p.capacity()).sum::<usize>()
+            + 24 * self.parts.capacity()
+            + 48 * self.sums.capacity()
+            + 24 * (self.u.capacity() + self.my.capacity())
+    }
+}
 
 impl RigidModes {
     /// The coarse space of the groups `group` (an elastic body each; a
@@ -66,47 +89,66 @@ impl RigidModes {
     /// positions `x` (m) and the direction `normal` of a push on each
     /// particle from outside its body (any length; 0 where unknown), all
     /// in store order.
+    /// Where no body is free (every body clamped, as in the paper's
+    /// Examples 1, 2 and 6), one pass over `fixed` and `group` and nothing
+    /// is kept.
     pub fn update(&mut self, group: &[u32], fixed: &[u32], mass: &[f32], x: &[Vec3], normal: &[Vec3]) {
         let n = group.len();
+        self.inv_mass.clear();
+        self.inv_inertia.clear();
+        self.body.clear();
+        self.xi.clear();
+        self.lever.clear();
         let groups = group.iter().map(|&g| g as usize + 1).max().unwrap_or(0);
         // Per group: particles, whether one is fixed, mass, first moment.
         let mut count = vec![0usize; groups];
         let mut clamped = vec![false; groups];
-        let mut m = vec![0.0f64; groups];
-        let mut mx = vec![DVec3::ZERO; groups];
         for i in 0..n {
             let g = group[i] as usize;
             count[g] += 1;
             clamped[g] |= fixed[i] != 0;
-            m[g] += f64::from(mass[i]);
-            mx[g] += f64::from(mass[i]) * x[i].as_dvec3();
+        }
+        let free = |g: usize| !clamped[g] && count[g] >= 4;
+        if !(0..groups).any(free) {
+            return;
+        }
+        let mut m = vec![0.0f64; groups];
+        let mut mx = vec![DVec3::ZERO; groups];
+        for i in 0..n {
+            let g = group[i] as usize;
+            if free(g) {
+                m[g] += f64::from(mass[i]);
+                mx[g] += f64::from(mass[i]) * x[i].as_dvec3();
+            }
         }
         let centre: Vec<DVec3> = (0..groups).map(|g| if m[g] > 0.0 { mx[g] / m[g] } else { DVec3::ZERO }).collect();
         let mut inertia = vec![DMat3::ZERO; groups];
         for i in 0..n {
             let g = group[i] as usize;
+            if !free(g) {
+                continue;
+            }
             let r = x[i].as_dvec3() - centre[g];
             inertia[g] += f64::from(mass[i]) * (DMat3::from_diagonal(DVec3::splat(r.dot(r))) - outer(r, r));
         }
         // The coarse bodies: free, at least four particles, an inertia
         // that is well conditioned enough to invert.
         let mut coarse = vec![NONE; groups];
-        self.inv_mass.clear();
-        self.inv_inertia.clear();
         for g in 0..groups {
             let det = inertia[g].determinant();
             let scale = inertia[g].x_axis.x + inertia[g].y_axis.y + inertia[g].z_axis.z;
             let invertible = det.is_finite() && det > 1e-9 * scale.powi(3);
-            if clamped[g] || count[g] < 4 || m[g] <= 0.0 || !invertible {
+            if !free(g) || m[g] <= 0.0 || !invertible {
                 continue;
             }
             coarse[g] = self.inv_mass.len() as u32;
             self.inv_mass.push(1.0 / m[g]);
             self.inv_inertia.push(inertia[g].inverse());
         }
-        self.body.clear();
+        if self.is_empty() {
+            return;
+        }
         self.body.extend(group.iter().map(|&g| coarse[g as usize]));
-        self.xi.clear();
         self.xi.extend((0..n).map(|i| {
             let g = group[i] as usize;
             if coarse[g] == NONE {
@@ -115,7 +157,6 @@ impl RigidModes {
                 (x[i].as_dvec3() - centre[g]).as_vec3()
             }
         }));
-        self.lever.clear();
         self.lever.extend(self.xi.iter().zip(normal).map(|(xi, n)| match n.try_normalize() {
             Some(n) => xi.cross(n).length(),
             None => xi.length(),
@@ -139,7 +180,11 @@ impl RigidModes {
     /// n_c times too small (the placement of issue 34 with its top layer
     /// of 30 particles against the ceiling: the sweeps alternated between
     /// 8.5e4 Pa and 0 on its rows).
+    /// Nothing to do where [`RigidModes::is_empty`].
     pub fn couple_mobility(&self, contact: &[u32], out: &mut [f32]) {
+        if self.is_empty() {
+            return;
+        }
         let k = self.inv_mass.len();
         let (mut count, mut arm) = (vec![0.0f64; k], vec![0.0f64; k]);
         for (i, &b) in self.body.iter().enumerate() {
@@ -182,8 +227,15 @@ impl RigidModes {
     }
 
     /// The rigid response (t_b, w_b) of each coarse body to the particle
-    /// forces `f(i)`: Phi (Phi^T M Phi)^-1 Phi^T f.
-    fn response(&self, parts: &mut Vec<Part>, n: usize, f: impl Fn(usize) -> Vec3 + Sync) -> Vec<(Vec3, Vec3)> {
+    /// forces `f(i)`, Phi (Phi^T M Phi)^-1 Phi^T f, into `out`.
+    fn response(
+        &self,
+        parts: &mut Vec<Part>,
+        sums: &mut Vec<(DVec3, DVec3)>,
+        out: &mut Vec<(Vec3, Vec3)>,
+        n: usize,
+        f: impl Fn(usize) -> Vec3 + Sync,
+    ) {
         let (body, xi) = (&self.body, &self.xi);
         parts.resize_with(nblocks(n), Vec::new);
         parts.par_iter_mut().enumerate().for_each(|(b, part)| {
@@ -204,25 +256,27 @@ impl RigidModes {
                 }
             }
         });
-        let mut sums = vec![(DVec3::ZERO, DVec3::ZERO); self.inv_mass.len()];
+        sums.clear();
+        sums.resize(self.inv_mass.len(), (DVec3::ZERO, DVec3::ZERO));
         for part in parts.iter() {
             for &(k, f, t) in part {
                 sums[k as usize].0 += f;
                 sums[k as usize].1 += t;
             }
         }
-        sums.iter()
-            .enumerate()
-            .map(|(k, &(f, t))| ((f * self.inv_mass[k]).as_vec3(), (self.inv_inertia[k] * t).as_vec3()))
-            .collect()
+        out.clear();
+        out.extend(
+            sums.iter()
+                .enumerate()
+                .map(|(k, &(f, t))| ((f * self.inv_mass[k]).as_vec3(), (self.inv_inertia[k] * t).as_vec3())),
+        );
     }
 
     /// z = P r = R r + (I - R M) D (I - M R) r, with D = diag(`jacobi`)
     /// (1/kg) and `mass` M; z_i = 0 where `fixed`.
-    /// `parts` is scratch, kept by the caller for its capacity.
     pub fn precondition(
         &self,
-        parts: &mut Vec<Part>,
+        scratch: &mut CoarseScratch,
         r: &[Vec3],
         jacobi: &[f32],
         mass: &[f32],
@@ -230,7 +284,9 @@ impl RigidModes {
         z: &mut [Vec3],
     ) {
         let n = r.len();
-        let u = self.response(parts, n, |i| r[i]);
+        let CoarseScratch { parts, sums, u, my } = scratch;
+        self.response(parts, sums, u, n, |i| r[i]);
+        let u = &*u;
         let (body, xi) = (&self.body, &self.xi);
         let rigid = |resp: &[(Vec3, Vec3)], i: usize| {
             let k = body[i];
@@ -243,11 +299,12 @@ impl RigidModes {
         };
         // z = u + y with y = D (r - M u), then z -= R (M y).
         z.par_iter_mut().enumerate().for_each(|(i, z)| {
-            let ui = rigid(&u, i);
+            let ui = rigid(u, i);
             *z = ui + jacobi[i] * (r[i] - mass[i] * ui);
         });
         let zr = &*z;
-        let my = self.response(parts, n, |i| mass[i] * (zr[i] - rigid(&u, i)));
+        self.response(parts, sums, my, n, |i| mass[i] * (zr[i] - rigid(u, i)));
+        let my = &*my;
         let (body, xi) = (&self.body, &self.xi);
         z.par_iter_mut().enumerate().for_each(|(i, z)| {
             let k = body[i];

@@ -340,6 +340,10 @@ impl SolidModel for Mixed {
         self.elastic.mobility(solids, contact, out)
     }
 
+    fn couples_bodies(&self) -> bool {
+        self.elastic.couples_bodies()
+    }
+
     fn wall_contact(&self, solids: &mut SolidStore, near: &Current) {
         self.granular.wall_contact(solids, near);
     }

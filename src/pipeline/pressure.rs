@@ -25,6 +25,7 @@ use porosph_kernels::hydrostatic::{self, Columns};
 use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
+use rayon::prelude::*;
 
 /// The rows of the system and the warm-started boundary pressures.
 pub(super) struct PressureRows<'a> {
@@ -79,20 +80,29 @@ pub(super) fn setup<'a>(
         let v = model.predicted();
         let c = zeros(arena, ns);
         // The particles with a pair of the solve outside their body (store
-        // order): a fluid or wall pair, or another body's particle.
-        let contact = arena.alloc_slice_fill_copy(ns, 0u32);
-        let body = vols.body_solid;
-        let blocks = pairs.sf.used().iter().zip(pairs.sb.used()).zip(pairs.ss.used()).enumerate();
-        for (b, ((sf, sb), ss)) in blocks {
-            for q in 0..BLOCK.min(ns - b * BLOCK) {
-                let k = b * BLOCK + q;
-                let walls = vols.no_walls_solid[k] == 0 && !sb.range(q).is_empty();
-                let others = ss.range(q).any(|m| body[ss.j[m] as usize] != body[k]);
-                if !sf.range(q).is_empty() || walls || others {
-                    contact[w.solid_perm[k] as usize] = 1;
+        // order): a fluid or wall pair, or another body's particle. Only a
+        // model that couples a body's rows through its rigid motion reads
+        // them (none where every body is clamped).
+        let contact: &[u32] = if model.couples_bodies() {
+            let body = vols.body_solid;
+            let sorted = arena.alloc_slice_fill_copy(ns, 0u32);
+            let blocks = pairs.sf.used().par_iter().zip(pairs.sb.used().par_iter()).zip(pairs.ss.used().par_iter());
+            sorted.par_chunks_mut(BLOCK).zip(blocks).enumerate().for_each(|(b, (marks, ((sf, sb), ss)))| {
+                for (q, mark) in marks.iter_mut().enumerate() {
+                    let k = b * BLOCK + q;
+                    let walls = vols.no_walls_solid[k] == 0 && !sb.range(q).is_empty();
+                    let others = ss.range(q).any(|m| body[ss.j[m] as usize] != body[k]);
+                    *mark = u32::from(!sf.range(q).is_empty() || walls || others);
                 }
+            });
+            let contact = arena.alloc_slice_fill_copy(ns, 0u32);
+            for (k, &i) in w.solid_perm.iter().enumerate() {
+                contact[i as usize] = sorted[k];
             }
-        }
+            contact
+        } else {
+            &[]
+        };
         model.mobility(solids, contact, c);
         for (k, &i) in w.solid_perm.iter().enumerate() {
             let i = i as usize;

@@ -82,8 +82,14 @@ pub trait SolidModel: Send + Sync {
     /// [`SolidModel::respond`] (1/kg; 0 for fixed particles), for the
     /// pressure solve's diagonals; `contact` (store order) is 1 for the
     /// particles with a pair of the solve outside their body, the rows a
-    /// body's motion couples.
+    /// body's motion couples (empty unless [`SolidModel::couples_bodies`]).
     fn mobility(&self, solids: &SolidStore, contact: &[u32], out: &mut [f32]);
+
+    /// Whether [`SolidModel::mobility`] reads `contact`: a free body's
+    /// rows are coupled through its rigid motion. False by default.
+    fn couples_bodies(&self) -> bool {
+        false
+    }
 
     /// After the step's velocities are set ([`finish`]): a model whose
     /// walls are not in the pressure solve keeps its particles out of them
@@ -329,6 +335,10 @@ impl SolidModel for Peer2018 {
         // it through CG's coarse space).
         out.par_iter_mut().enumerate().for_each(|(i, c)| *c = if s.fixed[i] != 0 { 0.0 } else { self.jacobi[i] });
         self.modes.couple_mobility(contact, out);
+    }
+
+    fn couples_bodies(&self) -> bool {
+        !self.modes.is_empty()
     }
 
     fn bytes(&self) -> usize {
