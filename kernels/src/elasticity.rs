@@ -772,9 +772,9 @@ mod tests {
         }
     }
 
-    /// The issue-34 ball's material on a 6^3 block at rest (d = 1 cm, 500
-    /// kg/m^3, mu 5e4 Pa, lambda 2e4 Pa), for systems at dt 2 ms.
+    /// A free 6^3 block at rest (d = 1 cm), for systems at dt 2 ms.
     struct BallBody {
+        x0: Vec<Vec3>,
         rest: RestState,
         def: Vec<Deformation>,
         lame: Vec<Lame>,
@@ -782,15 +782,22 @@ mod tests {
     }
 
     impl BallBody {
+        /// The issue-34 ball's material (500 kg/m^3, mu 5e4 Pa, lambda 2e4
+        /// Pa).
         fn new() -> BallBody {
+            Self::with(500.0, Lame { mu: 5e4, lambda: 2e4 })
+        }
+
+        /// The block of `density` (kg/m^3) and Lamé parameters `lame`.
+        fn with(density: f32, lame: Lame) -> BallBody {
             let d = 0.01;
             let x0 = block([6, 6, 6], d);
             let n = x0.len();
-            let mass = vec![500.0 * d * d * d; n];
+            let mass = vec![density * d * d * d; n];
             let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
             let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
             deform(&rest, &x0, &mut rot, &mut def);
-            BallBody { rest, def, lame: vec![Lame { mu: 5e4, lambda: 2e4 }; n], mass }
+            BallBody { x0, rest, def, lame: vec![lame; n], mass }
         }
 
         fn system<'a>(&'a self, fixed: &'a [u32]) -> System<'a> {
@@ -910,29 +917,16 @@ mod tests {
     #[test]
     fn two_level_cg_moves_a_stiff_light_body_as_a_whole() {
         let d = 0.01;
-        let x0 = block([6, 6, 6], d);
+        let body = BallBody::with(119.7, Lame { mu: 2.6e5, lambda: 4.6e5 });
+        let (x0, mass) = (&body.x0, &body.mass);
         let n = x0.len();
-        let mass = vec![119.7 * d * d * d; n];
-        let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d));
-        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
-        deform(&rest, &x0, &mut rot, &mut def);
-        let lame = vec![Lame { mu: 2.6e5, lambda: 4.6e5 }; n];
         let fixed = vec![0; n];
-        let plain = System {
-            rest: &rest,
-            def: &def,
-            lame: &lame,
-            mass: &mass,
-            fixed: &fixed,
-            dt: 0.002,
-            jacobi: None,
-            coarse: None,
-        };
+        let plain = body.system(&fixed);
         let mut jacobi = Vec::new();
         plain.inverse_diagonal(&mut jacobi);
-        let normal: Vec<Vec3> = rest.wsum.clone();
+        let normal: Vec<Vec3> = body.rest.wsum.clone();
         let mut modes = RigidModes::default();
-        modes.update(&vec![0; n], &fixed, &mass, &x0, &normal);
+        modes.update(&vec![0; n], &fixed, mass, x0, &normal);
         let pre = System { jacobi: Some(&jacobi), ..plain };
         let two = System { jacobi: Some(&jacobi), coarse: Some(&modes), ..plain };
         let top = x0.iter().map(|x| x.y).fold(f32::MIN, f32::max);
@@ -944,7 +938,7 @@ mod tests {
             let st = conjugate_gradients(sys, &rhs, &mut a, tol, max, &mut CgBuffers::default());
             (a, st)
         };
-        let momentum = |a: &[Vec3]| a.iter().zip(&mass).map(|(a, m)| m * a.y).sum::<f32>();
+        let momentum = |a: &[Vec3]| a.iter().zip(mass).map(|(a, m)| m * a.y).sum::<f32>();
         let (one_two, _) = solve(&two, 0.0, 1);
         let (one_jacobi, _) = solve(&pre, 0.0, 1);
         let (p2, pj) = (momentum(&one_two) / push, momentum(&one_jacobi) / push);
