@@ -479,29 +479,41 @@ fn the_light_box_at_the_surface_floats_where_it_is_put() {
     assert!(dy.abs() < 0.5 * d, "the body moved {dy} m from its start");
 }
 
-/// A free box placed 3 mm (0.3 d) into the floor of a pool at d = 1 cm: a
-/// 1,500 kg/m^3 box of 0.1 x 0.06 x 0.1 m, `min` y = -0.003 m, so its own
-/// lattice put its lowest layer 0.7 d above the floor's inner wall layer.
-/// The first step read those rows as compression and threw a particle to
-/// 1.59 m/s; free solid particles now keep a spacing d from walls
-/// (`scene::geometry::SOLID_WALL_GAP`; the box loses that layer and rests
-/// 0.7 d above the floor). Reference: from rest, gravity gives g dt =
+/// Free boxes placed 3 mm (0.3 d) into the floor of a pool at d = 1 cm,
+/// or into each other. (1) A 1,500 kg/m^3 box of 0.1 x 0.06 x 0.1 m with
+/// `min` y = -0.003 m: its own lattice put its lowest layer 0.7 d above
+/// the floor's inner wall layer, and the first step read those rows as
+/// compression and threw a particle to 1.59 m/s. (2) The same box on the
+/// floor's lattice and a second one, 0.08 x 0.04 x 0.08 m, set 3 mm into
+/// its top: 1.54 m/s. Free solid particles now keep a spacing d from walls
+/// and from other bodies (`scene::geometry::SOLID_WALL_GAP`,
+/// `SOLID_SOLID_GAP`; the layer that is too close is dropped and the body
+/// rests 0.7 d further). Reference: from rest, gravity gives g dt =
 /// 0.0196 m/s in the first 2 ms step; asked: every particle (fluid and
-/// solid) below 2 g dt after step 1 (measured 0.0235 m/s; with the box
-/// on the floor's lattice, `min` y = 0, 0.0216 m/s).
+/// solid) below 2 g dt after step 1 (measured 0.0235 and 0.0216 m/s; with
+/// the boxes a spacing apart on one lattice, 0.0216 m/s).
 #[test]
-fn a_box_placed_into_the_floor_starts_at_rest() {
-    let text = "[simulation]\nparticle_spacing = 0.01\nend_time = 0.1\nmax_dt = 0.002\n\n\
+fn boxes_placed_into_the_floor_or_into_each_other_start_at_rest() {
+    let pool = "[simulation]\nparticle_spacing = 0.01\nend_time = 0.1\nmax_dt = 0.002\n\n\
                 [[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 1.0\n\n\
                 [[wall]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.4, 0.2] }\ncontainer = true\n\n\
-                [[fluid]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.16, 0.2] }\nfractions = { water = 1.0 }\n\n\
-                [[solid]]\nname = \"box\"\nbox = { min = [0.1, -0.003, 0.05], max = [0.2, 0.06, 0.15] }\n\
-                density = 1500.0\nshear_modulus = 1e5\nlame_lambda = 1e5\n";
-    let mut sim = Simulation::new(scene_text(text));
-    let st = *sim.step().unwrap_or_else(|e| panic!("{e}"));
-    let bound = 2.0 * 9.81 * st.dt;
-    eprintln!("box 0.3 d into the floor: largest speed after step 1 {:.4} m/s (bound {bound:.4})", st.max_speed);
-    assert!(st.max_speed < bound, "largest speed {} m/s after the first step", st.max_speed);
+                [[fluid]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.16, 0.2] }\nfractions = { water = 1.0 }\n";
+    let solid = |name: &str, min: [f32; 3], max: [f32; 3]| {
+        format!(
+            "\n[[solid]]\nname = \"{name}\"\nbox = {{ min = {min:?}, max = {max:?} }}\n\
+             density = 1500.0\nshear_modulus = 1e5\nlame_lambda = 1e5\n"
+        )
+    };
+    let into_floor = solid("box", [0.1, -0.003, 0.05], [0.2, 0.06, 0.15]);
+    let stacked =
+        solid("low", [0.1, 0.0, 0.05], [0.2, 0.06, 0.15]) + &solid("high", [0.11, 0.057, 0.06], [0.19, 0.1, 0.14]);
+    for (what, bodies) in [("a box 0.3 d into the floor", into_floor), ("a box 0.3 d into another", stacked)] {
+        let mut sim = Simulation::new(scene_text(&format!("{pool}{bodies}")));
+        let st = *sim.step().unwrap_or_else(|e| panic!("{what}: {e}"));
+        let bound = 2.0 * 9.81 * st.dt;
+        eprintln!("{what}: largest speed after step 1 {:.4} m/s (bound {bound:.4})", st.max_speed);
+        assert!(st.max_speed < bound, "{what}: largest speed {} m/s after the first step", st.max_speed);
+    }
 }
 
 /// Placement 432's second defect, alone: its box (119.7 kg/m^3, mu 2.6e5
