@@ -480,20 +480,24 @@ fn the_light_box_at_the_surface_floats_where_it_is_put() {
 }
 
 /// Free boxes placed 3 mm (0.3 d) into the floor of a pool at d = 1 cm,
-/// or into each other. (1) A 1,500 kg/m^3 box of 0.1 x 0.06 x 0.1 m with
+/// or into each other, and the pool's fluid itself 3 mm into the floor.
+/// (1) A 1,500 kg/m^3 box of 0.1 x 0.06 x 0.1 m with
 /// `min` y = -0.003 m: its own lattice put its lowest layer 0.7 d above
 /// the floor's inner wall layer, and the first step read those rows as
 /// compression and threw a particle to 1.59 m/s. (2) The same box on the
 /// floor's lattice and a second one, 0.08 x 0.04 x 0.08 m, set 3 mm into
-/// its top: 1.54 m/s. Free solid particles now keep a spacing d from walls
-/// and from other bodies (`scene::geometry::SOLID_WALL_GAP`,
-/// `SOLID_SOLID_GAP`; the layer that is too close is dropped and the body
-/// rests 0.7 d further). Reference: from rest, gravity gives g dt =
-/// 0.0196 m/s in the first 2 ms step; asked: every particle (fluid and
-/// solid) below 2 g dt after step 1 (measured 0.0235 and 0.0216 m/s; with
-/// the boxes a spacing apart on one lattice, 0.0216 m/s).
+/// its top: 1.54 m/s. (3) No body, the fluid box's `min` y = -0.003 m:
+/// the first solve ran to its cap of 100 sweeps, 1.59 m/s. Free solid
+/// particles now keep a spacing d from walls and from other bodies, and
+/// fluid particles from walls (`scene::geometry::SOLID_WALL_GAP`,
+/// `SOLID_SOLID_GAP`, `FLUID_WALL_GAP`; the layer that is too close is
+/// dropped and the rest starts 0.7 d further). Reference: from rest,
+/// gravity gives g dt = 0.0196 m/s in the first 2 ms step; asked: every
+/// particle (fluid and solid) below 2 g dt after step 1 (measured 0.0235,
+/// 0.0216 and 0.0217 m/s; on one lattice, a spacing apart, 0.0216 and
+/// 0.0215 m/s).
 #[test]
-fn boxes_placed_into_the_floor_or_into_each_other_start_at_rest() {
+fn bodies_and_fluid_placed_into_the_floor_or_into_each_other_start_at_rest() {
     let pool = "[simulation]\nparticle_spacing = 0.01\nend_time = 0.1\nmax_dt = 0.002\n\n\
                 [[phase]]\nname = \"water\"\ndensity = 1000.0\nviscosity = 1.0\n\n\
                 [[wall]]\nbox = { min = [0.0, 0.0, 0.0], max = [0.3, 0.4, 0.2] }\ncontainer = true\n\n\
@@ -507,8 +511,16 @@ fn boxes_placed_into_the_floor_or_into_each_other_start_at_rest() {
     let into_floor = solid("box", [0.1, -0.003, 0.05], [0.2, 0.06, 0.15]);
     let stacked =
         solid("low", [0.1, 0.0, 0.05], [0.2, 0.06, 0.15]) + &solid("high", [0.11, 0.057, 0.06], [0.19, 0.1, 0.14]);
-    for (what, bodies) in [("a box 0.3 d into the floor", into_floor), ("a box 0.3 d into another", stacked)] {
-        let mut sim = Simulation::new(scene_text(&format!("{pool}{bodies}")));
+    let sunk_pool = pool
+        .replace("min = [0.0, 0.0, 0.0], max = [0.3, 0.16, 0.2]", "min = [0.0, -0.003, 0.0], max = [0.3, 0.16, 0.2]");
+    let cases = [
+        ("a box 0.3 d into the floor", format!("{pool}{into_floor}")),
+        ("a box 0.3 d into another", format!("{pool}{stacked}")),
+        ("the fluid 0.3 d into the floor", sunk_pool.clone()),
+    ];
+    assert_ne!(sunk_pool, pool);
+    for (what, text) in cases {
+        let mut sim = Simulation::new(scene_text(&text));
         let st = *sim.step().unwrap_or_else(|e| panic!("{what}: {e}"));
         let bound = 2.0 * 9.81 * st.dt;
         eprintln!("{what}: largest speed after step 1 {:.4} m/s (bound {bound:.4})", st.max_speed);
