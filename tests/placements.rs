@@ -199,8 +199,9 @@
 //! `PLACEMENTS=100 PLACEMENTS_FIRST=1` and `PLACEMENTS=150
 //! PLACEMENTS_FIRST=101 bash bench/placements.sh`, 983 s and 1,203 s on 2
 //! cores shared with a CI run): 0 of 250 fail, 55 refused; with the fluid
-//! gap as well (commit 0545f8b, `PLACEMENTS=100 PLACEMENTS_FIRST=251`):
-//! 0 of 100 fail, 22 refused, 335 s on 2 quiet cores.
+//! gap as well (commit 0545f8b, `PLACEMENTS=100 PLACEMENTS_FIRST=251`
+//! and `PLACEMENTS=150 PLACEMENTS_FIRST=351`): 0 of 250 fail, 51 refused,
+//! 335 s + 519 s on 2 quiet cores. So 0 of the 500 fail (106 refused).
 
 mod common;
 
