@@ -529,12 +529,12 @@ fn bodies_and_fluid_placed_into_the_floor_or_into_each_other_start_at_rest() {
         solid("low", [0.1, 0.0, 0.05], [0.2, 0.06, 0.15]) + &solid("high", [0.11, 0.057, 0.06], [0.19, 0.1, 0.14]);
     let sunk_pool = pool
         .replace("min = [0.0, 0.0, 0.0], max = [0.3, 0.16, 0.2]", "min = [0.0, -0.003, 0.0], max = [0.3, 0.16, 0.2]");
+    assert_ne!(sunk_pool, pool);
     let cases = [
         ("a box 0.3 d into the floor", format!("{pool}{into_floor}")),
         ("a box 0.3 d into another", format!("{pool}{stacked}")),
-        ("the fluid 0.3 d into the floor", sunk_pool.clone()),
+        ("the fluid 0.3 d into the floor", sunk_pool),
     ];
-    assert_ne!(sunk_pool, pool);
     for (what, text) in cases {
         let mut sim = Simulation::new(scene_text(&text));
         let st = *sim.step().unwrap_or_else(|e| panic!("{what}: {e}"));

@@ -89,6 +89,7 @@ impl RigidModes {
     /// positions `x` (m) and the direction `normal` of a push on each
     /// particle from outside its body (any length; 0 where unknown), all
     /// in store order.
+    ///
     /// Where no body is free (every body clamped, as in the paper's
     /// Examples 1, 2 and 6), one pass over `fixed` and `group` and nothing
     /// is kept.
@@ -180,6 +181,7 @@ impl RigidModes {
     /// n_c times too small (the placement of issue 34 with its top layer
     /// of 30 particles against the ceiling: the sweeps alternated between
     /// 8.5e4 Pa and 0 on its rows).
+    ///
     /// Nothing to do where [`RigidModes::is_empty`].
     pub fn couple_mobility(&self, contact: &[u32], out: &mut [f32]) {
         if self.is_empty() {

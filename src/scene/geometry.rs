@@ -95,9 +95,8 @@ pub const SOLID_SOLID_GAP: f64 = FLUID_SOLID_GAP;
 /// a sphere or cylinder block takes the global lattice points `(i + 1/2) d`
 /// inside it (signed distance <= 0). A point is dropped when it is closer than
 /// [`FLUID_WALL_GAP`] to a wall particle or d / 2 to a particle of an earlier
-/// block, or when it
-/// lies inside a solid (non-container) wall shape, whose core holds no wall
-/// particles but is not fluid either. Velocity and phase fractions come from
+/// block, or when it lies inside a solid (non-container) wall shape, whose
+/// core holds no wall particles but is not fluid either. Velocity and phase fractions come from
 /// the block.
 ///
 /// Fluid is also kept out of solids: a point inside a `[[solid]]` shape, or
@@ -157,15 +156,13 @@ pub fn sample_solids(scene: &Scene, walls: &SampledWalls) -> SampledSolids {
         return out;
     };
     let min_dist = 0.5 * d;
-    let mut grid = PointGrid::new(d);
-    for &p in &walls.positions {
-        grid.insert(p);
-    }
     let mut wall_grid = PointGrid::new(d);
     for &p in &walls.positions {
         wall_grid.insert(p);
     }
-    // The particles of the earlier bodies, free and fixed.
+    // Every solid particle so far, and those of the earlier bodies, free
+    // and fixed.
+    let mut grid = PointGrid::new(d);
     let (mut free_grid, mut fixed_grid) = (PointGrid::new(d), PointGrid::new(d));
     let obstacles: Vec<&Wall> = scene.walls.iter().filter(|w| !w.container).collect();
     for (b, solid) in scene.solids.iter().enumerate() {
@@ -175,7 +172,7 @@ pub fn sample_solids(scene: &Scene, walls: &SampledWalls) -> SampledSolids {
         for p in candidates {
             let fixed = solid.fixed.as_ref().is_some_and(|f| inside(f, p));
             let too_close = if fixed {
-                free_grid.any_within(p, SOLID_SOLID_GAP * d)
+                wall_grid.any_within(p, min_dist) || free_grid.any_within(p, SOLID_SOLID_GAP * d)
             } else {
                 wall_grid.any_within(p, SOLID_WALL_GAP * d)
                     || free_grid.any_within(p, SOLID_SOLID_GAP * d)
