@@ -154,7 +154,17 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
     };
     iisph::fluid_setup(&mut ff, &mut fb, None, rows, dt, &mut src, &mut diag);
     let (mut src_b, mut diag_b) = (vec![0.0; na], vec![0.0; na]);
-    let rows = WallRows { vol: &vol_b, sigma: &sigma_b, u_star, vm_fluid: &vm, vol_fluid: &vol };
+    let (mut gx, mut gy, mut gz) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    iisph::wall_gradient_sums(&fb, VelMut { x: &mut gx, y: &mut gy, z: &mut gz });
+    let fluid_wall_gradient = Vel { x: &gx, y: &gy, z: &gz };
+    let rows = WallRows {
+        vol: &vol_b,
+        sigma: &sigma_b,
+        u_star,
+        vm_fluid: &vm,
+        vol_fluid: &vol,
+        fluid_wall_gradient: Some(fluid_wall_gradient),
+    };
     iisph::wall_setup(&mut bf, rows, dt, &mut src_b, &mut diag_b);
     let p0 = (0..n).map(|_| rng.range(0.0, 200.0)).collect();
     let mut p_wall0 = vec![0.0; nw];

@@ -360,7 +360,8 @@ pub fn fluid_setup(
 pub struct WallRows<'a> {
     /// Current volume V_b of each active wall, m^3.
     pub vol: &'a [f32],
-    /// sigma_b = V0_b / V_b of each active wall.
+    /// The row's sigma: the wall's own part at the lattice volume, the
+    /// rest as sigma_b = V0_b / V_b ([`wall_row_sigma`]).
     pub sigma: &'a [f32],
     /// Fluid u*, m/s (full fluid arrays).
     pub u_star: Vel<'a>,
@@ -368,14 +369,81 @@ pub struct WallRows<'a> {
     pub vm_fluid: &'a [f32],
     /// Fluid V, m^3.
     pub vol_fluid: &'a [f32],
+    /// sum_b g_fb over each fluid particle's wall pairs, already scaled
+    /// (full fluid arrays; [`wall_gradient_sums`]), for the coupled
+    /// diagonal; `None` for the plain one.
+    pub fluid_wall_gradient: Option<Vel<'a>>,
+}
+
+/// The sigma of the active wall rows: sigma_b (fluid, solid and the wall's
+/// own part with the Akinci rest volumes) with the wall's own part
+/// sum_b' V0_b' W_bb' replaced by the lattice's d^3 sum_b' W_bb' =
+/// gamma d^3 / V0_b (the rest volume is gamma / sum_b' W_bb',
+/// src/pipeline/setup.rs). A wall stands for the fluid lattice it
+/// replaces: beside a fluid lattice at rest its row then reads the
+/// lattice's sum, 1, on a flat wall (where V0 = d^3 and nothing changes)
+/// and in the container's concave edges and corners alike. With the
+/// Akinci part there, whose rest volumes are smaller in a concave corner
+/// (more wall neighbours), those rows read 0.934 (edges) and 0.929
+/// (corners) beside the start lattice (scenes/hydrostatic.toml), below 1
+/// whatever the fluid did: they never resisted compression, kept p = 0,
+/// and the fluid beside them carried their share (2.1 and 3.5 times rho g
+/// depth at step 10; bench/RESULTS.md, issue 15). The volumes V_b and the
+/// fluid rows keep the Akinci parts. Opt-in (`wall_rows = "lattice"`):
+/// a quasi-2D Rayleigh-Taylor box inverts later with it.
+pub fn wall_row_sigma(
+    active: &[u32],
+    sigma_b: &[f32],
+    rest_volume: &[f32],
+    sigma_static: &[f32],
+    gamma_cell: f32,
+    out: &mut [f32],
+) {
+    out.par_iter_mut().zip(sigma_b.par_iter()).zip(active.par_iter()).for_each(|((o, &s), &b)| {
+        let b = b as usize;
+        *o = s + gamma_cell / rest_volume[b] - sigma_static[b];
+    });
+}
+
+/// G_f = sum_b g_fb over the (scaled) wall pairs of every fluid particle:
+/// how hard all its wall neighbours push it per unit of their pressure
+/// (for [`wall_setup`]'s diagonal).
+pub fn wall_gradient_sums(fb: &PairLists, out: VelMut) {
+    let blocks = out.x.par_chunks_mut(BLOCK).zip(out.y.par_chunks_mut(BLOCK)).zip(out.z.par_chunks_mut(BLOCK));
+    blocks.zip(fb.used().par_iter()).for_each(|(((ox, oy), oz), blk)| {
+        for q in 0..ox.len() {
+            let r = blk.range(q);
+            let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
+            let mut k = r.start;
+            while k < r.end {
+                sx += load(&blk.gx, k);
+                sy += load(&blk.gy, k);
+                sz += load(&blk.gz, k);
+                k += LANES;
+            }
+            (ox[q], oy[q], oz[q]) = (sum(sx), sum(sy), sum(sz));
+        }
+    });
 }
 
 /// Pass 4c, wall rows: scales the wall-fluid pair gradients in place by
-/// the harmonic pair volume, then forms S_b = 1 + dt div*_b - V0_b/V_b
-/// (P-Eq. 26) with div*_b = -sum_f Vbar (u*_b - u*_f).grad W_bf (u*_b = 0),
-/// and a_bb = -dt^2 sum_f (V_f/m_f) |g_bf|^2 (a static wall has no
-/// acceleration; the solids near a wall add theirs,
-/// `solid_rows::wall_solid_setup`).
+/// the harmonic pair volume, then forms S_b = 1 + dt div*_b - sigma_b
+/// (P-Eq. 26, sigma_b from [`wall_row_sigma`]) with
+/// div*_b = -sum_f Vbar (u*_b - u*_f).grad W_bf (u*_b = 0), and the
+/// diagonal a_bb = -dt^2 sum_f (V_f/m_f) |g_bf|^2 or, with
+/// `rows.fluid_wall_gradient` (`wall_rows = "lattice"`),
+/// a_bb = -dt^2 max(sum_f (V_f/m_f) |g_bf|^2, sum_f (V_f/m_f) g_bf . (-G_f))
+/// with G_f = sum_b' g_fb' ([`wall_gradient_sums`]). The first is
+/// d(A p)_b / dp_b (a static wall has no acceleration; the solids near a
+/// wall add theirs, `solid_rows::wall_solid_setup`). The second is the
+/// row's answer when every wall row around its fluid neighbours rises
+/// with it: where walls meet, a few fluid particles are pushed by the
+/// rows of two or three walls at once, and relaxed Jacobi on the first
+/// alone diverges in that mode (measured with the edge and corner rows
+/// active: the wall pressures alternated 3.2 / 0.4 / 8.2 / 0.7 / 23.7 kPa
+/// from sweep to sweep in the hydrostatic column's first steps). On a
+/// flat wall the two are close. The Akinci rows where walls meet keep p =
+/// 0 (their sigma stays below 1), so the plain diagonal serves them.
 pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32], diag: &mut [f32]) {
     let dt2 = dt * dt;
     source
@@ -388,17 +456,22 @@ pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32
                 let i = b * BLOCK + q;
                 scale_pairs(blk, q, rows.vol[i], rows.vol_fluid);
                 let r = blk.range(q);
-                let (mut div, mut s2) = (F::ZERO, F::ZERO);
+                let (mut div, mut s2, mut all) = (F::ZERO, F::ZERO, F::ZERO);
                 let u = rows.u_star;
                 let mut k = r.start;
                 while k < r.end {
                     let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
                     div += gather(u.x, &blk.j, k) * x + gather(u.y, &blk.j, k) * y + gather(u.z, &blk.j, k) * z;
-                    s2 += gather(rows.vm_fluid, &blk.j, k) * (x * x + y * y + z * z);
+                    let vm = gather(rows.vm_fluid, &blk.j, k);
+                    s2 += vm * (x * x + y * y + z * z);
+                    if let Some(g) = rows.fluid_wall_gradient {
+                        let gf = x * gather(g.x, &blk.j, k) + y * gather(g.y, &blk.j, k) + z * gather(g.z, &blk.j, k);
+                        all -= vm * gf;
+                    }
                     k += LANES;
                 }
                 *src = 1.0 + dt * sum(div) - rows.sigma[i];
-                *dg = -dt2 * sum(s2);
+                *dg = -dt2 * sum(s2).max(sum(all));
             }
         });
 }

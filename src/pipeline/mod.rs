@@ -58,6 +58,9 @@ pub struct Params {
     /// The pressure solve starts from half the last pressure and half the
     /// hydrostatic estimate (`simulation.pressure_warm_start`).
     pub hydrostatic_warm_start: bool,
+    /// Wall rows with their own part at the lattice volume and the coupled
+    /// diagonal (`simulation.wall_rows = "lattice"`).
+    pub lattice_wall_rows: bool,
     /// Rest density rho_k of each phase, kg/m^3.
     pub phase_density: Vec<f32>,
     /// Viscosity mu_k of each phase, Pa s.

@@ -127,13 +127,21 @@ pub(super) fn setup<'a>(
         };
         let fs = if ns > 0 { Some(&mut pairs.fs) } else { None };
         iisph::fluid_setup(&mut pairs.ff, &mut pairs.fb, fs, rows, dt, src, diag);
-        let rows = WallRows {
-            vol: vols.vol_wall,
-            sigma: vols.sigma_wall,
-            u_star: pred.u_star,
-            vm_fluid: vols.vm,
-            vol_fluid: vols.vol,
+        // `wall_rows = "lattice"`: the rows' own part at the lattice volume
+        // and the walls' coupled diagonal.
+        let (sigma, fluid_wall_gradient) = if p.lattice_wall_rows {
+            let mut g = zeros3(arena, fluid.len());
+            iisph::wall_gradient_sums(&pairs.fb, g.reborrow());
+            let sigma_row = zeros(arena, w.active.len());
+            let gamma_cell = p.kernel.flat_wall_gamma(p.h) * p.cell_volume();
+            let (rest, stat) = (&walls.rest_volume, &walls.sigma_static);
+            iisph::wall_row_sigma(&w.active, vols.sigma_wall, rest, stat, gamma_cell, sigma_row);
+            (&*sigma_row, Some(g.into_view()))
+        } else {
+            (vols.sigma_wall, None)
         };
+        let (u_star, vm_fluid, vol_fluid) = (pred.u_star, vols.vm, vols.vol);
+        let rows = WallRows { vol: vols.vol_wall, sigma, u_star, vm_fluid, vol_fluid, fluid_wall_gradient };
         iisph::wall_setup(&mut pairs.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
             let vol_free =

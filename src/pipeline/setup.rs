@@ -8,7 +8,7 @@ use super::{PairSet, Params, Simulation, StepStats, Workspace};
 use crate::backend::Passes;
 use crate::scene::{
     sample_fluid, sample_solids, sample_walls, DriftMomentum, KernelChoice, PhasePressure, PhaseTransport,
-    PressureWarmStart, Scene, SolidMaterial, ViscositySolver,
+    PressureWarmStart, Scene, SolidMaterial, ViscositySolver, WallRowsChoice,
 };
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
@@ -41,6 +41,7 @@ impl Params {
             omega: s.omega,
             chebyshev_radius: s.chebyshev_radius,
             hydrostatic_warm_start: s.pressure_warm_start == PressureWarmStart::Hydrostatic,
+            lattice_wall_rows: s.wall_rows == WallRowsChoice::Lattice,
             phase_density: scene.phases.iter().map(|p| p.density).collect(),
             phase_viscosity: scene.phases.iter().map(|p| p.viscosity).collect(),
             phase_drift_tau: scene.phases.iter().map(|p| p.drift_tau).collect(),
@@ -281,7 +282,11 @@ impl Simulation {
         // V0_b = d^3 exactly on a flat wall (where the wall stands for the
         // missing fluid lattice), less in corners, more at convex edges; and
         // sum_b' V0_b' W_bb' ~ gamma < 1 everywhere, so a wall row only
-        // resists compression by fluid, never by its own sampling.
+        // resists compression by fluid, never by its own sampling. With
+        // `wall_rows = "lattice"` the rows' own part is the lattice's d^3
+        // sum_b' W_bb' = gamma d^3 / V0_b instead (`iisph::wall_row_sigma`),
+        // so that in a concave corner, too, a row reads 1 beside a fluid
+        // lattice at rest.
         let gamma = params.kernel.flat_wall_gamma(params.h);
         let mut sum_w = vec![0.0f32; nw];
         for (b, blk) in bb.used().iter().enumerate() {

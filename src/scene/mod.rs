@@ -131,6 +131,24 @@ pub struct Simulation {
     /// 0.02; bench/RESULTS.md).
     #[serde(default = "defaults::pressure_warm_start")]
     pub pressure_warm_start: PressureWarmStart,
+    /// What a wall row counts as the wall's own part of its sigma
+    ///
+    /// "akinci" (default): the Akinci rest volumes, sum_b' V0_b' W_bb'
+    /// (PHYSICS.md §2.3). Where walls meet (a container's edges and
+    /// corners) those volumes are smaller, so these rows read 0.93 beside
+    /// a fluid at rest, never resist compression and keep p = 0; the fluid
+    /// beside them carries 2.1 (edges) and 3.5 (corners) times rho g depth
+    /// at first. "lattice": the lattice's d^3 sum_b' W_bb', so every wall
+    /// row reads 1 beside a fluid lattice at rest, and the wall rows take
+    /// a Jacobi diagonal for the mode in which the rows around a fluid
+    /// particle rise together (`iisph::wall_row_sigma`,
+    /// `iisph::wall_setup`). Measured (bench/RESULTS.md, "The container's
+    /// edges and corners"): the edges and corners at rho g depth within 7
+    /// %, a Wendland C2 tank at rest with half the pressure error and a
+    /// third less motion; but a quasi-2D Rayleigh-Taylor box (two layers
+    /// between walls) inverts later.
+    #[serde(default = "defaults::wall_rows")]
+    pub wall_rows: WallRowsChoice,
     /// The drift relaxation weight tau in m^2/(Pa s) (= m^3 s/kg)
     ///
     /// tau of P-Eq. 11 (PHYSICS.md §7, §8.13: the paper's "m/(Pa s)" is a
@@ -214,7 +232,9 @@ pub struct Simulation {
 
 /// The defaults of `[simulation]`.
 mod defaults {
-    use super::{DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, PressureWarmStart, ViscositySolver};
+    use super::{
+        DriftMomentum, KernelChoice, PhasePressure, PhaseTransport, PressureWarmStart, ViscositySolver, WallRowsChoice,
+    };
 
     pub fn gravity() -> [f32; 3] {
         [0.0, -9.81, 0.0]
@@ -266,6 +286,9 @@ mod defaults {
     /// 19 (bench/RESULTS.md, "Implicit viscosity").
     pub fn pressure_warm_start() -> PressureWarmStart {
         PressureWarmStart::Half
+    }
+    pub fn wall_rows() -> WallRowsChoice {
+        WallRowsChoice::Akinci
     }
     pub fn viscosity_solver() -> ViscositySolver {
         ViscositySolver::Explicit
@@ -319,6 +342,18 @@ pub enum PressureWarmStart {
     /// `"hydrostatic"`: half the last step's pressure and half rho |g|
     /// depth (the plain half without gravity along one axis).
     Hydrostatic,
+}
+
+/// `wall_rows`: the wall's own part of a wall row's sigma
+/// (`porosph_kernels::iisph::wall_row_sigma`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum WallRowsChoice {
+    /// `"akinci"` (default): the Akinci rest volumes.
+    Akinci,
+    /// `"lattice"`: the lattice volume d^3, and the walls' coupled
+    /// diagonal.
+    Lattice,
 }
 
 /// `viscosity_solver`: explicit or implicit viscosity (P-Eq. 23;
