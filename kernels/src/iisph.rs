@@ -360,8 +360,9 @@ pub fn fluid_setup(
 pub struct WallRows<'a> {
     /// Current volume V_b of each active wall, m^3.
     pub vol: &'a [f32],
-    /// The row's sigma: the wall's own part at the lattice volume, the
-    /// rest as sigma_b = V0_b / V_b ([`wall_row_sigma`]).
+    /// The row's sigma: sigma_b = V0_b / V_b of each active wall, or with
+    /// `wall_rows = "lattice"` [`wall_row_sigma`]'s (the wall's own part
+    /// at the lattice volume).
     pub sigma: &'a [f32],
     /// Fluid u*, m/s (full fluid arrays).
     pub u_star: Vel<'a>,
