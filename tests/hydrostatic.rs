@@ -179,9 +179,9 @@ fn hydrostatic_column_from(chebyshev_radius: f32, warm: PressureWarmStart) -> u6
 /// and in its floor corners (three) carries rho g depth, as the fluid
 /// elsewhere does, within 10 % (sum of p over sum of rho g depth over the
 /// group's particles deeper than 3 d, every step of 0.1-0.2 s). Reference:
-/// hydrostatics. With the default Akinci wall rows those groups read 1.2
-/// and 2.8 at step 100 (2.1 and 3.5 at step 10; printed here): the wall
-/// rows where walls meet keep p = 0.
+/// hydrostatics. With the default Akinci wall rows those groups read 1.26
+/// and 2.93 over the same window (2.1 and 3.5 at step 10; printed here):
+/// the wall rows where walls meet keep p = 0.
 ///
 /// Measured 2026-12-06: lattice rows, edges 0.939 and corners 1.042 over
 /// 0.1-0.2 s (no wall within d 0.988, one 1.000); Akinci rows 1.264 and
@@ -191,7 +191,9 @@ fn lattice_wall_rows_hold_the_container_edges_and_corners_at_rho_g_depth() {
     let run = |rows: WallRowsChoice| {
         let mut scene = common::scene_file("hydrostatic.toml");
         scene.simulation.wall_rows = rows;
-        let (d, rho, g, fill, side) = (0.01f32, 1000.0f32, 9.81f32, 0.3f32, 0.1f32);
+        let (d, rho, g) = (scene.simulation.particle_spacing, scene.phases[0].density, -scene.simulation.gravity[1]);
+        // The fill's top and the container's side in scenes/hydrostatic.toml.
+        let (fill, side) = (0.3f32, 0.1f32);
         let mut sim = Simulation::new(scene);
         // Sums of p and rho g depth by the number of walls within d.
         let mut sums = [[0.0f64; 2]; 4];
@@ -382,7 +384,7 @@ fn tank_at_rest_per_particle() {
 /// start: 0.021 / 0.018 / 0.013 / 0.010), pressure error per particle 2.3 /
 /// 2.3 / 1.5 / 1.9 % (4.0 / 4.0 / 3.5 / 3.4 %).
 /// With `wall_rows = "lattice"` (measured 2026-12-06 with the half warm
-/// start; the same run without it in brackets): RMS 0.0136 / 0.0121 /
+/// start; this test without it, the same day, in brackets): RMS 0.0136 / 0.0121 /
 /// 0.0093 / 0.0074 m/s at 0.5 / 1 / 2 / 3 s (0.0199 / 0.0168 / 0.0126 /
 /// 0.0099), pressure error per particle 2.2 / 1.6 / 1.8 / 1.2 % (4.5 /
 /// 3.9 / 3.5 / 3.6 %), slope -3.8 / +0.9 / -3.3 / -0.3 % off rho g: the
