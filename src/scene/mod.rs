@@ -124,11 +124,12 @@ pub struct Simulation {
     /// connected column of fluid along gravity
     /// (kernels/src/hydrostatic.rs): deep pools in a fraction of the
     /// sweeps (the hydrostatic column 10,814 -> 1,223 sweeps in 1 s;
-    /// Example 1 at d = 4 mm 35.6 -> 2.0 a step), but where the fluid is
-    /// far from hydrostatic (a dam break's free face) the estimate is too
-    /// high and the solve, whose stop criterion counts compression only,
-    /// keeps part of it (Example 1: 0.34 m/s after the first step against
-    /// 0.02; bench/RESULTS.md).
+    /// Example 1 at d = 4 mm 35.6 -> 2.0 a step). The depth is capped by
+    /// the distance across to air (a lateral free face such as a dam's),
+    /// so the estimate does not press a falling column outwards (Example
+    /// 1 at d = 4 mm: 0.18 m/s after the first step, 0.036 with `wall_rows
+    /// = "lattice"`, against 0.34 uncapped and 0.02 with "half";
+    /// bench/RESULTS.md).
     #[serde(default = "defaults::pressure_warm_start")]
     pub pressure_warm_start: PressureWarmStart,
     /// What a wall row counts as the wall's own part of its sigma
