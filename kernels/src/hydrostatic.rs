@@ -138,10 +138,12 @@ impl Grid {
     }
 
     /// For every cell, the distance in cells, across (within its layer),
-    /// to the nearest cell that holds no fluid point (`occupied` -inf)
-    /// and none of `obstacles`: air beside the fluid, inside the grid or
-    /// in the ring of cells around it across (a ring cell holds no fluid);
-    /// `f32::MAX` where a layer has none. A 3 x 3 chamfer transform (steps
+    /// to the nearest air: a cell above the highest fluid cell of its
+    /// column (`occupied`) that holds none of `obstacles`, inside the grid
+    /// or in the ring of cells around it across (a ring cell holds no
+    /// fluid). An empty cell with fluid above it (a hole in the bulk, a
+    /// cavity under a sheet) is not air: capping there would put an
+    /// estimate near 0 amid the fluid. `f32::MAX` where a layer has none. A 3 x 3 chamfer transform (steps
     /// 1 and sqrt 2), two sweeps a layer, over the widened grid.
     fn air_distance<'a>(&self, occupied: &[bool], obstacles: &[Vel], arena: &'a Bump) -> &'a [f32] {
         let [na, nb, nu] = self.dims;
@@ -158,10 +160,12 @@ impl Grid {
         let dist = arena.alloc_slice_fill_copy(wa * wb * nu, f32::MAX);
         for a in 0..wa {
             for b in 0..wb {
-                for u in 0..nu {
-                    let inner = (1..=na).contains(&a) && (1..=nb).contains(&b);
-                    let fluid = inner && occupied[((a - 1) * nb + (b - 1)) * nu + u];
-                    if !fluid && !solid[widened(a, b, u)] {
+                let inner = (1..=na).contains(&a) && (1..=nb).contains(&b);
+                let column = |u: usize| inner && occupied[((a - 1) * nb + (b - 1)) * nu + u];
+                // Open to the sky: above the column's highest fluid cell.
+                let open_from = (0..nu).rev().find(|&u| column(u)).map_or(0, |u| u + 1);
+                for u in open_from..nu {
+                    if !solid[widened(a, b, u)] {
                         dist[widened(a, b, u)] = 0.0;
                     }
                 }
@@ -260,8 +264,8 @@ impl<'a> Columns<'a> {
     }
 
     /// [`Columns::new`] that also sees lateral free faces: an empty cell
-    /// (in the grid or one cell beyond the fluid's box across) that holds
-    /// none of the `obstacles` (walls, solids) is air, and a point some
+    /// (in the grid or one cell beyond the fluid's box across) open to
+    /// the sky that holds none of the `obstacles` (walls, solids) is air, and a point some
     /// cells across from air is estimated no deeper than that distance
     /// (`depth`); where there is no air, the same estimate as `new`. A dam's vertical face then starts near p = 0, as the
     /// flow will have it, instead of at rho g depth.
@@ -417,6 +421,38 @@ mod tests {
             }
             assert!(est <= depth + 1e-6);
         }
+    }
+
+    /// A hole in the bulk is not a free face: the dam of the test above
+    /// with the particles of one cell (x and y in [0.08, 0.10) m, every z)
+    /// taken out; the particles in the cells beside it across keep the
+    /// depth of their columns (the face is 0.12 m away, deeper than they
+    /// are).
+    #[test]
+    fn a_hole_in_the_bulk_does_not_lower_the_estimate_beside_it() {
+        let (d, g) = (0.01f32, 9.81f32);
+        let full = lattice([20, 20, 4], d, 0.0);
+        let hole = |x: f32, y: f32| (0.08..0.10).contains(&x) && (0.08..0.10).contains(&y);
+        let keep: Vec<usize> = (0..full[0].len()).filter(|&i| !hole(full[0][i], full[1][i])).collect();
+        let x = [0, 1, 2].map(|k| keep.iter().map(|&i| full[k][i]).collect::<Vec<f32>>());
+        let wall = lattice([26, 26, 10], d, 0.0).map(|c| c.iter().map(|&v| v - 3.0 * d).collect::<Vec<f32>>());
+        let out = |i: usize| wall[2][i] < 0.0 || wall[2][i] > 0.04 || wall[1][i] < 0.0 || wall[0][i] < 0.0;
+        let sel: Vec<usize> = (0..wall[0].len()).filter(|&i| out(i)).collect();
+        let wall = [0, 1, 2].map(|k| sel.iter().map(|&i| wall[k][i]).collect::<Vec<f32>>());
+        let arena = Bump::new();
+        let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
+        let walls = [Vel { x: &wall[0], y: &wall[1], z: &wall[2] }];
+        let faces = Columns::with_faces(xv, &walls, [0.0, -g, 0.0], d, &arena).expect("a grid");
+        let mut beside = 0;
+        for i in 0..x[0].len() {
+            let at = at(xv, i);
+            if (0.06..0.08).contains(&at.x) && (0.08..0.10).contains(&at.y) {
+                beside += 1;
+                let depth = 0.2 - at.y;
+                assert!((faces.depth(at) - depth).abs() < 1e-5, "particle {i} at {at}: {} m", faces.depth(at));
+            }
+        }
+        assert_eq!(beside, 16);
     }
 
     /// No gravity, or gravity not along an axis: the plain half warm start.
