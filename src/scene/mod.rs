@@ -124,11 +124,12 @@ pub struct Simulation {
     /// connected column of fluid along gravity
     /// (kernels/src/hydrostatic.rs): deep pools in a fraction of the
     /// sweeps (the hydrostatic column 10,814 -> 1,223 sweeps in 1 s;
-    /// Example 1 at d = 4 mm 35.6 -> 2.0 a step). The depth is capped by
-    /// the distance across to air (a lateral free face such as a dam's),
-    /// so the estimate does not press a falling column outwards (Example
-    /// 1 at d = 4 mm: 0.18 m/s after the first step, 0.036 with `wall_rows
-    /// = "lattice"`, against 0.34 uncapped and 0.02 with "half";
+    /// Example 1 at d = 4 mm 35.6 -> 2.0 a step). The depth is scaled by
+    /// the fluid-at-rest factor of its cell (the coarse potential problem
+    /// with p = 0 in air beside the fluid), so the estimate does not press
+    /// a released column outwards (Example 1 at d = 4 mm: 0.14 m/s after
+    /// the first step, 0.039 with `wall_rows = "lattice"`, against 0.34
+    /// with the column's depth alone and 0.02 with "half";
     /// bench/RESULTS.md).
     #[serde(default = "defaults::pressure_warm_start")]
     pub pressure_warm_start: PressureWarmStart,
