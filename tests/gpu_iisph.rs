@@ -212,6 +212,7 @@ fn settings(c: &Case, min: u32, max: u32, eta: f32) -> SolveSettings {
         min_iterations: min,
         max_iterations: max,
         max_density_error: eta,
+        max_row_density_error: f32::INFINITY,
         rows_active: rows as f32,
     }
 }

@@ -193,13 +193,15 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         report.density_error = e;
         report.solid_error = e_s;
         let worst = e.max(e_s);
-        let done = it >= s.min_iterations && worst <= s.max_density_error || it >= s.max_iterations;
+        // The largest row error: a local mode the mean hides
+        // (`iisph::Divergence::local`, and `max_row_density_error`).
+        let largest = err.par_iter().chain(err_s.par_iter()).copied().reduce(|| 0.0, f32::max);
+        report.largest_error = largest;
+        let met = worst <= s.max_density_error && largest <= s.max_row_density_error;
+        let done = it >= s.min_iterations && met || it >= s.max_iterations;
         if let (Some(c), false) = (cheb.as_mut(), done) {
             c.extrapolate([&mut *p, &mut *p_active, &mut *p_s]);
         }
-        // The largest row error: a local mode the mean hides
-        // (`iisph::Divergence::local`).
-        let largest = err.par_iter().chain(err_s.par_iter()).copied().reduce(|| 0.0, f32::max);
         let diverging = guard.diverging(worst) | local.diverging(largest);
         let restart = diverging && worst > s.max_density_error && report.restarts < iisph::MAX_BACKOFFS;
         if restart {
@@ -215,7 +217,7 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         for (k, &b) in sys.walls.active.iter().enumerate() {
             p_wall[b as usize] = p_active[k];
         }
-        if (!restart && it >= s.min_iterations && worst <= s.max_density_error) || it >= s.max_iterations {
+        if (!restart && it >= s.min_iterations && met) || it >= s.max_iterations {
             break;
         }
     }

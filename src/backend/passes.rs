@@ -191,6 +191,11 @@ pub struct SolveSettings {
     pub max_iterations: u32,
     /// Stop at this mean density error (fraction).
     pub max_density_error: f32,
+    /// And only once every row's predicted compression (fluid and solid
+    /// rows) is at most this (fraction; infinite: no such bound). CPU
+    /// loop only: the GPU backend leaves a solve with a finite bound to
+    /// the CPU.
+    pub max_row_density_error: f32,
     /// Number of fluid rows (a_ii != 0), the mean's divisor (at least 1).
     pub rows_active: f32,
 }
@@ -284,6 +289,9 @@ pub struct SolveReport {
     pub restarts: u32,
     /// Mean predicted compression of the solid rows after the solve.
     pub solid_error: f32,
+    /// Largest predicted compression of a fluid or solid row after the
+    /// solve (CPU loop only; 0 on the GPU).
+    pub largest_error: f32,
     /// Device time of the loop from timestamp queries, ms (None where the
     /// loop ran on the CPU or the adapter has none).
     pub gpu_ms: Option<f64>,

@@ -48,6 +48,9 @@ pub struct Params {
     pub cfl: f32,
     /// Target mean density error of the pressure solve (fraction).
     pub max_density_error: f32,
+    /// Bound on every row's predicted compression (fraction; infinite
+    /// without `max_row_density_error`).
+    pub max_row_density_error: f32,
     pub min_iterations: u32,
     pub max_iterations: u32,
     /// Jacobi relaxation omega.
@@ -120,6 +123,9 @@ pub struct StepStats {
     pub density_error: f32,
     /// Mean predicted compression of the solid rows after the solve.
     pub solid_density_error: f32,
+    /// Largest predicted compression of a fluid or solid row after the
+    /// solve (CPU solve; 0 where the GPU solved).
+    pub largest_density_error: f32,
     /// Largest fluid speed after the step, m/s.
     pub max_speed: f32,
     /// Largest drift speed max_k |u_mk| of the step, outer and inner, m/s

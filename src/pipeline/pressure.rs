@@ -296,6 +296,7 @@ pub(super) fn solve<'a>(
             min_iterations: p.min_iterations,
             max_iterations: p.max_iterations,
             max_density_error: p.max_density_error,
+            max_row_density_error: p.max_row_density_error,
             rows_active: rows_active as f32,
         },
     };

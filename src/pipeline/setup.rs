@@ -36,6 +36,7 @@ impl Params {
             max_dt: s.max_dt,
             cfl: s.cfl_number,
             max_density_error: s.max_density_error,
+            max_row_density_error: s.max_row_density_error.unwrap_or(f32::INFINITY),
             min_iterations: s.min_iterations,
             max_iterations: s.max_iterations,
             omega: s.omega,

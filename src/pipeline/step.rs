@@ -306,6 +306,7 @@ fn step_passes<'a>(
     st.iterations = solved.report.iterations;
     st.density_error = solved.report.density_error;
     st.solid_density_error = solved.report.solid_error;
+    st.largest_density_error = solved.report.largest_error;
     st.solve_restarts = solved.report.restarts;
     st.cg_iterations += solved.solid_stats.iterations;
     st.cg_residual = st.cg_residual.max(solved.solid_stats.residual);

@@ -448,6 +448,7 @@ impl IisphGpu {
             submits,
             restarts: 0,
             solid_error: 0.0,
+            largest_error: 0.0,
         })
     }
 

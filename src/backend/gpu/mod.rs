@@ -357,7 +357,7 @@ impl Passes for GpuBackend {
     /// The GPU system has fluid and wall rows only: with solids the solve
     /// runs on the CPU.
     fn pressure_solve(&mut self, sys: &PressureSystem, mut x: Unknowns, arena: &Bump) -> SolveReport {
-        if self.passes.pressure_solve && sys.solids.is_none() {
+        if self.passes.pressure_solve && sys.solids.is_none() && sys.settings.max_row_density_error == f32::INFINITY {
             let inp = SolveInput {
                 kernel: sys.kernel,
                 fluid_grid: sys.fluid_grid,
