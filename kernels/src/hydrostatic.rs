@@ -144,8 +144,9 @@ impl Grid {
     /// fluid at rest in this geometry falls below its column's rho g
     /// depth: the coarse potential problem of a fluid released at rest
     /// (P-Eq. 24 with u = 0), lap p = 0 in the fluid's cells, p = 0 in air
-    /// (as in [`Grid::air_distance`]: open to the sky, no obstacle) and
-    /// above the grid, dp/dn = rho g . n at walls, solids and the grid's
+    /// (an empty cell above its column's highest fluid cell that holds
+    /// none of `obstacles`, in the grid or in the ring of cells around it
+    /// across) and above the grid, dp/dn = rho g . n at walls, solids and the grid's
     /// other sides (7-point stencil on the cells, conjugate gradients from
     /// the column's hydrostatic pressure, in units of rho |g| cell); f =
     /// p / p_column where the column is open above, 1 elsewhere. In a pool
@@ -162,8 +163,8 @@ impl Grid {
                 }
             }
         }
-        // Cell kinds on the widened grid: 0 fluid (the unknowns), 1 air,
-        // 2 wall (solid, or empty under fluid in a ring column: none).
+        // Cell kinds on the widened grid: fluid (the unknowns; an empty cell
+        // with fluid above it counts, a hole is not a face), air, wall.
         const FLUID: u8 = 0;
         const AIR: u8 = 1;
         const WALL: u8 = 2;
@@ -171,11 +172,11 @@ impl Grid {
         for a in 0..wa {
             for b in 0..wb {
                 let inner = (1..=na).contains(&a) && (1..=nb).contains(&b);
-                let column = |u: usize| inner && occupied[((a - 1) * nb + (b - 1)) * nu + u];
-                let open_from = (0..nu).rev().find(|&u| column(u)).map_or(0, |u| u + 1);
+                let has_fluid = |u: usize| inner && occupied[((a - 1) * nb + (b - 1)) * nu + u];
+                let open_from = (0..nu).rev().find(|&u| has_fluid(u)).map_or(0, |u| u + 1);
                 for u in 0..nu {
                     let c = widened(a, b, u);
-                    kind[c] = if solid[c] && !column(u) {
+                    kind[c] = if solid[c] && !has_fluid(u) {
                         WALL
                     } else if u >= open_from {
                         AIR
@@ -206,7 +207,11 @@ impl Grid {
                 }
             }
         }
-        let unknowns: Vec<usize> = (0..wa * wb * nu).filter(|&c| kind[c] == FLUID).collect();
+        let unknowns = arena.alloc_slice_fill_copy(kind.iter().filter(|&&k| k == FLUID).count(), 0usize);
+        for (slot, c) in unknowns.iter_mut().zip((0..wa * wb * nu).filter(|&c| kind[c] == FLUID)) {
+            *slot = c;
+        }
+        let unknowns = &*unknowns;
         // A p for p on the widened grid (0 outside the fluid), and b.
         let neighbours = |c: usize| {
             let ab = c / nu;
@@ -219,20 +224,20 @@ impl Grid {
             ]
         };
         let apply = |p: &[f32], out: &mut [f32]| {
-            for &c in &unknowns {
+            for &c in unknowns.iter() {
                 let u = c % nu;
                 let mut diag = 0.0f32;
                 let mut off = 0.0f32;
                 let lateral = neighbours(c);
                 let vertical = [(u > 0).then(|| c - 1), (u + 1 < nu).then(|| c + 1)];
-                for nbr in lateral.into_iter().chain(vertical) {
-                    match nbr.map(|m| kind[m]) {
-                        Some(FLUID) => {
+                for m in lateral.into_iter().chain(vertical).flatten() {
+                    match kind[m] {
+                        FLUID => {
                             diag += 1.0;
-                            off += p[nbr.unwrap_or(c)];
+                            off += p[m];
                         }
                         // p = 0 on the face between the cells.
-                        Some(AIR) => diag += 2.0,
+                        AIR => diag += 2.0,
                         _ => {}
                     }
                 }
@@ -244,14 +249,14 @@ impl Grid {
             }
         };
         let rhs = arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32);
-        for &c in &unknowns {
+        for &c in unknowns.iter() {
             let u = c % nu;
             let below_wall = u == 0 || !matches!(kind[c - 1], FLUID | AIR);
             let above_wall = u + 1 < nu && kind[c + 1] == WALL;
             rhs[c] = below_wall as u32 as f32 - above_wall as u32 as f32;
         }
         let p = arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32);
-        for &c in &unknowns {
+        for &c in unknowns.iter() {
             p[c] = if column[c].is_nan() { 0.0 } else { column[c] };
         }
         let (r, q, dir) = (
@@ -261,7 +266,7 @@ impl Grid {
         );
         apply(p, q);
         let dot = |x: &[f32], y: &[f32]| unknowns.iter().map(|&c| f64::from(x[c]) * f64::from(y[c])).sum::<f64>();
-        for &c in &unknowns {
+        for &c in unknowns.iter() {
             r[c] = rhs[c] - q[c];
             dir[c] = r[c];
         }
@@ -277,13 +282,13 @@ impl Grid {
             }
             apply(dir, q);
             let alpha = (rr / dot(dir, q)) as f32;
-            for &c in &unknowns {
+            for &c in unknowns.iter() {
                 p[c] += alpha * dir[c];
                 r[c] -= alpha * q[c];
             }
             let rr_next = dot(r, r);
             let beta = (rr_next / rr) as f32;
-            for &c in &unknowns {
+            for &c in unknowns.iter() {
                 dir[c] = r[c] + beta * dir[c];
             }
             rr = rr_next;
@@ -476,27 +481,33 @@ mod tests {
         (x, w)
     }
 
+    /// [`Columns::with_faces`] of the particles `x` among the walls `w`
+    /// (d = 1 cm, gravity -y).
+    fn faces<'a>(x: &'a [Vec<f32>; 3], w: &'a [Vec<f32>; 3], arena: &'a Bump) -> Columns<'a> {
+        let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
+        let walls = [Vel { x: &w[0], y: &w[1], z: &w[2] }];
+        Columns::with_faces(xv, &walls, [0.0, -9.81, 0.0], 0.01, arena).expect("a grid")
+    }
+
     /// A dam: a column 0.15 m wide and 0.3 m high at d = 1 cm, 4 layers in
     /// z between walls, a wall behind it (x < 0) and none in front (x >
     /// 0.15 m). Reference: the exact pressure of the column released at
     /// rest (incompressible potential flow, 2-D: p / rho g = (H - y) -
     /// sum_n 2 / (H k_n^2) cos(k_n y) cosh(k_n x) / cosh(k_n L), with
-    /// k_n = (n + 1/2) pi / H, x from the back wall, L the width). Bound: 1.5 d of
-    /// head, what placing p = 0 on the face of a cell of 2 d, up to 1.5 d
-    /// beyond the fluid's edge (0.165 m here, the face at 0.15 m), shifts
-    /// under a slope of at most rho g; the column's depth alone is up to
-    /// 0.19 m off. Measured (2026-12-06): largest difference 0.0115 m (x =
+    /// k_n = (n + 1/2) pi / H, x from the back wall, L the width). Bound:
+    /// 1.5 d of head, what placing p = 0 on the face of a cell of 2 d, up
+    /// to 1.5 d beyond the fluid's edge (0.165 m here, the face at 0.15
+    /// m), shifts under a slope of at most rho g; the column's depth alone
+    /// is up to 0.28 m off (at the face's foot). Measured (2026-12-06): largest difference 0.0115 m (x =
     /// 0.075 m, y = 0.055 m: 0.0609 against 0.0494 m), at the back wall's
     /// floor 0.1101 against 0.1059 m, beside the face at the floor 0.0203
     /// against 0.0112 m.
     #[test]
     fn a_released_dam_column_is_estimated_at_its_potential_flow_pressure() {
-        let (d, g) = (0.01f32, 9.81f32);
+        let d = 0.01f32;
         let (x, w) = boxed([15, 30, 4], d, true);
         let arena = Bump::new();
-        let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let walls = [Vel { x: &w[0], y: &w[1], z: &w[2] }];
-        let c = Columns::with_faces(xv, &walls, [0.0, -g, 0.0], d, &arena).expect("a grid");
+        let c = faces(&x, &w, &arena);
         let (h, l) = (0.3f64, 0.15f64);
         let exact = |x: f64, y: f64| {
             let q: f64 = (0..200)
@@ -522,16 +533,14 @@ mod tests {
     /// beside the fluid: the estimate is the column's depth to the bit.
     #[test]
     fn a_closed_tank_keeps_the_column_depth() {
-        let (d, g) = (0.01f32, 9.81f32);
-        let (x, w) = boxed([12, 20, 6], d, false);
+        let (x, w) = boxed([12, 20, 6], 0.01, false);
         let arena = Bump::new();
+        let with = faces(&x, &w, &arena);
         let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let walls = [Vel { x: &w[0], y: &w[1], z: &w[2] }];
-        let faces = Columns::with_faces(xv, &walls, [0.0, -g, 0.0], d, &arena).expect("a grid");
-        let plain = Columns::new(xv, [0.0, -g, 0.0], d, &arena).expect("a grid");
+        let plain = Columns::new(xv, [0.0, -9.81, 0.0], 0.01, &arena).expect("a grid");
         for i in 0..x[0].len() {
             let at = at(xv, i);
-            assert_eq!(faces.depth(at).to_bits(), plain.depth(at).to_bits(), "particle {i} at {at}");
+            assert_eq!(with.depth(at).to_bits(), plain.depth(at).to_bits(), "particle {i} at {at}");
         }
     }
 
@@ -541,22 +550,20 @@ mod tests {
     /// cell with fluid above is fluid).
     #[test]
     fn a_hole_in_the_bulk_does_not_lower_the_estimate_beside_it() {
-        let (d, g) = (0.01f32, 9.81f32);
-        let (full, w) = boxed([12, 20, 6], d, false);
+        let (full, w) = boxed([12, 20, 6], 0.01, false);
         let hole = |x: f32, y: f32| (0.04..0.06).contains(&x) && (0.04..0.06).contains(&y);
         let keep: Vec<usize> = (0..full[0].len()).filter(|&i| !hole(full[0][i], full[1][i])).collect();
         let x = [0, 1, 2].map(|k| keep.iter().map(|&i| full[k][i]).collect::<Vec<f32>>());
         let arena = Bump::new();
+        let with = faces(&x, &w, &arena);
         let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let walls = [Vel { x: &w[0], y: &w[1], z: &w[2] }];
-        let faces = Columns::with_faces(xv, &walls, [0.0, -g, 0.0], d, &arena).expect("a grid");
         let mut beside = 0;
         for i in 0..x[0].len() {
             let at = at(xv, i);
             if (0.02..0.04).contains(&at.x) && (0.04..0.06).contains(&at.y) {
                 beside += 1;
                 let depth = 0.2 - at.y;
-                assert!((faces.depth(at) - depth).abs() < 1e-5, "particle {i} at {at}: {} m", faces.depth(at));
+                assert!((with.depth(at) - depth).abs() < 1e-5, "particle {i} at {at}: {} m", with.depth(at));
             }
         }
         assert_eq!(beside, 24);

@@ -177,12 +177,10 @@ pub(super) fn setup<'a>(
         // `pressure_warm_start = "hydrostatic"`, that and half the
         // hydrostatic estimate (`hydrostatic` says why).
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        let columns = p.hydrostatic_warm_start.then(|| {
-            let obstacles =
-                [Vel { x: &walls.x, y: &walls.y, z: &walls.z }, Vel { x: &solids.x, y: &solids.y, z: &solids.z }];
-            Columns::with_faces(x, &obstacles, p.gravity, p.h, arena)
-        });
-        let columns = columns.flatten();
+        let obstacles =
+            [Vel { x: &walls.x, y: &walls.y, z: &walls.z }, Vel { x: &solids.x, y: &solids.y, z: &solids.z }];
+        let columns =
+            if p.hydrostatic_warm_start { Columns::with_faces(x, &obstacles, p.gravity, p.h, arena) } else { None };
         let at = |i: usize| Vec3::new(x.x[i], x.y[i], x.z[i]);
         hydrostatic::warm_start(columns.as_ref(), at, |i| ph.rest_density[i], &mut fluid.pressure);
         match &columns {
