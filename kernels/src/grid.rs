@@ -165,7 +165,17 @@ impl CellGrid {
     /// [`CellGrid`] from them to test "is anything of this grid within
     /// reach of that cell" with one lookup.
     pub fn dilated_keys(&self) -> Vec<u64> {
-        let mut keys = Vec::with_capacity(self.cells.len() * 8);
+        let mut keys = Vec::new();
+        self.dilated_keys_into(&mut keys);
+        keys
+    }
+
+    /// [`CellGrid::dilated_keys`] into `keys` (cleared first), which keeps
+    /// its capacity: at most 27 keys a cell, reserved up front, so a set of
+    /// particles that does not spread over more cells allocates nothing.
+    pub fn dilated_keys_into(&self, keys: &mut Vec<u64>) {
+        keys.clear();
+        keys.reserve(self.cells.len() * 27);
         for &k in &self.cells {
             let c = unmorton(k);
             for dz in -1i64..=1 {
@@ -181,7 +191,6 @@ impl CellGrid {
         }
         keys.sort_unstable();
         keys.dedup();
-        keys
     }
 
     /// Number of occupied cells.

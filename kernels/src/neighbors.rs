@@ -233,6 +233,40 @@ pub fn build_gradient_pairs(
     build::<false>(lists, query, target, grid, near, kernel, Some((val, sums)))
 }
 
+/// The sums of [`build_gradient_pairs`] after some values changed:
+/// `sums[i]` += (`new[j]` - `old[j]`) W_ij for every pair of the
+/// fluid-fluid lists `ff` (query and target the same points `x`) whose
+/// `j` changed (its bits differ). The lists are symmetric (i is in j's
+/// list exactly when j is in i's, the same |x_i - x_j|^2 bits), so each
+/// changed j walks its own list; W_ij is recomputed from the positions as
+/// the neighbour pass computes it. Sequential in j order: the same result
+/// for any thread count. For the porous partition, which changes a few
+/// particles' rest volumes after the pairs were built (P Alg. 4's release,
+/// beta back to alpha where no porous solid is near).
+pub fn update_sums(ff: &PairLists, x: Vel, kernel: &Kernel, old: &[f32], new: &[f32], sums: &mut [f32]) {
+    for (b, blk) in ff.used().iter().enumerate() {
+        for q in 0..blk.start.len().saturating_sub(1) {
+            let j = b * BLOCK + q;
+            if old[j].to_bits() == new[j].to_bits() {
+                continue;
+            }
+            let dv = new[j] - old[j];
+            let r = blk.range(q);
+            let first = r.start;
+            for p in r {
+                let i = blk.j[p] as usize;
+                // The padding repeats the first pair's index (a list holds
+                // each neighbour once).
+                if p > first && i == blk.j[first] as usize {
+                    break;
+                }
+                let (dx, dy, dz) = (x.x[i] - x.x[j], x.y[i] - x.y[j], x.z[i] - x.z[j]);
+                sums[i] += dv * kernel.w((dx * dx + dy * dy + dz * dz).sqrt());
+            }
+        }
+    }
+}
+
 /// [`build_pairs`] (`W`: with the kernel values) or
 /// [`build_gradient_pairs`] (with `sums`).
 fn build<const W: bool>(

@@ -267,6 +267,63 @@ fn gradient_pairs_sum_what_stored_values_sum() {
     }
 }
 
+/// `update_sums`: the sums of `build_gradient_pairs` taken with old values,
+/// updated where a few values changed (one in 20, as the porous
+/// partition's release changes a few rest volumes), equal the sums over
+/// stored kernel values with the new ones. Reference: the stored-W sum of
+/// `iisph::fluid_volumes`; the update adds in another order, so equal to
+/// rounding (1e-6 relative; the sums are about 1, their terms 1e-2 to 1);
+/// unchanged rows stay bit for bit.
+#[test]
+fn updated_gradient_pair_sums_follow_changed_values() {
+    use porosph_kernels::iisph::{fluid_volumes, FluidSums};
+    use porosph_kernels::kernel::KernelShape;
+    use porosph_kernels::neighbors::{build_gradient_pairs, update_sums};
+    let h = 0.05;
+    let mut rng = Lcg(23);
+    let cloud: Vec<[f32; 3]> = (0..3000).map(|_| [0.4 * rng.next(), 0.4 * rng.next(), 0.4 * rng.next()]).collect();
+    for shape in [KernelShape::CubicSpline, KernelShape::WendlandC2] {
+        let kernel = Kernel::with_shape(shape, h);
+        let n = cloud.len();
+        let (x, y, z, g) = sorted(&cloud, h);
+        let p = Vel { x: &x, y: &y, z: &z };
+        let old: Vec<f32> = (0..n).map(|_| 1e-3 * (0.5 + rng.next())).collect();
+        let changed: Vec<bool> = (0..n).map(|_| rng.next() < 0.05).collect();
+        let new: Vec<f32> =
+            old.iter().zip(&changed).map(|(&v, &c)| if c { v * (0.2 + rng.next()) } else { v }).collect();
+        let mut with_w = PairLists::default();
+        build_pairs(&mut with_w, p, p, &g, None, &kernel);
+        let (mut without, mut sums) = (PairLists::default(), vec![0.0f32; n]);
+        build_gradient_pairs(&mut without, p, p, &g, None, &kernel, &old, &mut sums);
+        let before = sums.clone();
+        update_sums(&without, p, &kernel, &old, &new, &mut sums);
+        let mut none = PairLists::default();
+        let far = [1e3f32; 1];
+        let mut wg = CellGrid::default();
+        wg.build(&[porosph_kernels::grid::morton(porosph_kernels::grid::cell_of(1e3, 1e3, 1e3, 1.0 / h))], h);
+        build_pairs(&mut none, p, Vel { x: &far, y: &far, z: &far }, &wg, None, &kernel);
+        let run = |ff: FluidSums| {
+            let (mut sigma, mut vol) = (vec![0.0f32; n], vec![0.0f32; n]);
+            fluid_volumes(ff, &none, None, &new, &[1.0], &mut sigma, &mut vol);
+            sigma
+        };
+        let (got, want) = (run(FluidSums::Done(&sums)), run(FluidSums::Pairs(&with_w)));
+        let near_changed = pairs_of(&with_w).iter().map(|r| r.iter().any(|&j| changed[j as usize])).collect::<Vec<_>>();
+        let (mut touched, mut worst) = (0, 0.0f32);
+        for i in 0..n {
+            worst = worst.max((got[i] - want[i]).abs() / want[i]);
+            if near_changed[i] {
+                touched += 1;
+            } else {
+                assert_eq!(sums[i].to_bits(), before[i].to_bits(), "{shape:?}: row {i} without a changed neighbour");
+                assert_eq!(got[i].to_bits(), want[i].to_bits(), "{shape:?}: row {i} without a changed neighbour");
+            }
+        }
+        assert!(worst <= 1e-6, "{shape:?}: relative difference {worst}");
+        assert!(touched > n / 10, "{shape:?}: only {touched} rows saw a changed neighbour");
+    }
+}
+
 /// `PairBlock::retain_nonzero_gradients` (the solid rows drop the SS pairs
 /// they scaled to 0): every query keeps exactly its pairs with a nonzero
 /// gradient, in their order, with their j, W and gradient bits, and the

@@ -186,6 +186,10 @@ struct Workspace {
     /// Solid positions in sorted order.
     solid_sorted: [Vec<f32>; 3],
     solid_grid: CellGrid,
+    /// Cells within one cell of a solid cell (each step), and their keys:
+    /// only fluid queries there can have solid neighbours.
+    solid_near: CellGrid,
+    solid_near_keys: Vec<u64>,
     /// omega_s, each solid particle's own body's share of its pressure
     /// row's neighbourhood, and V0_s, its rest volume in the solve (store
     /// order; `volumes::rest_rows`).

@@ -19,18 +19,17 @@ use porosph_kernels::soa::Vel;
 /// pass computes as it finds the pairs instead of storing W_ij.
 pub(super) struct FluidDensity<'a> {
     pub v0: &'a [f32],
-    pub own: &'a [f32],
+    pub own: &'a mut [f32],
 }
 
 /// Pass 0 for the fluid, walls and solids. The fluid store is reordered
 /// along the Morton curve; solids keep their store order (the pair lists
 /// see them in a sorted copy, `w.solid_perm`).
 ///
-/// Without a porous partition (`porous` false) the pairs FF keep no kernel
-/// values (16 bytes a pair slot instead of 20): the one sum over them that
-/// needs W is taken here ([`FluidDensity`]). With it, the partition changes
-/// fractions and with them V0 after this pass, so FF keeps W.
-#[allow(clippy::too_many_arguments)]
+/// The pairs FF keep no kernel values (16 bytes a pair slot instead of
+/// 20): the one sum over them that needs W is taken here
+/// ([`FluidDensity`]). A porous partition that then changes some rest
+/// volumes updates it (`porous::partition`).
 pub(super) fn search<'a>(
     cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
@@ -39,13 +38,13 @@ pub(super) fn search<'a>(
     w: &mut Workspace,
     pairs: &mut PairSet,
     backend: &mut dyn Passes,
-    porous: bool,
-) -> Option<FluidDensity<'a>> {
+) -> FluidDensity<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
     let support = p.kernel.support;
     let mut gpu_ms = 0.0;
-    let mut density = None;
+    let n = fluid.len();
+    let (v0, own) = (arena.alloc_slice_fill_copy(n, 0.0f32), arena.alloc_slice_fill_copy(n, 0.0f32));
     tm.time(Pass::Neighbors, || {
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         gpu_ms += backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
@@ -57,15 +56,8 @@ pub(super) fn search<'a>(
         w.fluid_grid.build(&w.keys, support);
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
-        if porous {
-            build_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel);
-        } else {
-            let n = fluid.len();
-            let (v0, own) = (arena.alloc_slice_fill_copy(n, 0.0f32), arena.alloc_slice_fill_copy(n, 0.0f32));
-            phases::rest_volumes(p.cell_volume(), fluid, v0);
-            build_gradient_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel, v0, own);
-            density = Some(FluidDensity { v0, own });
-        }
+        phases::rest_volumes(p.cell_volume(), fluid, v0);
+        build_gradient_pairs(&mut pairs.ff, fp, fp, &w.fluid_grid, None, &p.kernel, v0, own);
         build_pairs(&mut pairs.fb, fp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
         if !solids.is_empty() {
             solid_pairs(p, fluid, solids, walls, w, pairs);
@@ -78,14 +70,14 @@ pub(super) fn search<'a>(
         build_pairs(&mut pairs.bf, ap, fp, &w.fluid_grid, None, &p.kernel);
         if !solids.is_empty() {
             let [sx, sy, sz] = &w.solid_sorted;
-            build_pairs(&mut pairs.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, None, &p.kernel);
+            build_pairs(&mut pairs.bs, ap, Vel { x: sx, y: sy, z: sz }, &w.solid_grid, Some(&w.solid_near), &p.kernel);
         }
         let shape = StepShape { fluid: !fluid.is_empty(), solids: !solids.is_empty(), mixture: p.mixture() };
         let walls = WallInput { grid: &w.wall_grid, walls: wp, active: &w.active };
         gpu_ms += backend.prepare(&w.fluid_grid, walls, shape);
     });
     tm.set_gpu(Pass::Neighbors, gpu_ms);
-    density
+    FluidDensity { v0, own }
 }
 
 /// The active walls, in wall order: the targets of the fluid-wall pairs
@@ -126,6 +118,8 @@ fn solid_pairs(
     w.solid_keys.clear();
     w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));
     w.solid_grid.build(&w.solid_keys, support);
+    w.solid_grid.dilated_keys_into(&mut w.solid_near_keys);
+    w.solid_near.build(&w.solid_near_keys, support);
     for (dst, src) in w.solid_sorted.iter_mut().zip([&solids.x, &solids.y, &solids.z]) {
         dst.clear();
         dst.extend(w.solid_perm.iter().map(|&i| src[i as usize]));
@@ -137,7 +131,8 @@ fn solid_pairs(
     let [sx, sy, sz] = &w.solid_sorted;
     let sp = Vel { x: sx, y: sy, z: sz };
     let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-    build_pairs(&mut pairs.fs, fp, sp, &w.solid_grid, None, &p.kernel);
+    // Most of a pool is far from every solid: its queries skip the lookup.
+    build_pairs(&mut pairs.fs, fp, sp, &w.solid_grid, Some(&w.solid_near), &p.kernel);
     build_pairs(&mut pairs.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
     build_pairs(&mut pairs.ss, sp, sp, &w.solid_grid, None, &p.kernel);
     let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };

@@ -42,14 +42,9 @@ pub(super) fn rest_volumes(cell: f32, fluid: &FluidStore, v0: &mut [f32]) {
 }
 
 /// Pass 1. With porous solids the inner fractions count in the mass and
-/// the viscosity (P-Eq. 10). `v0`: the rest volumes if the neighbour pass
-/// computed them already ([`rest_volumes`]).
-pub(super) fn bookkeeping<'a>(
-    cx: &mut StepCtx<'a>,
-    fluid: &FluidStore,
-    porous: bool,
-    v0: Option<&'a [f32]>,
-) -> PhaseState<'a> {
+/// the viscosity (P-Eq. 10). `v0`: the rest volumes, which the neighbour
+/// pass computed ([`rest_volumes`]).
+pub(super) fn bookkeeping<'a>(cx: &mut StepCtx<'a>, fluid: &FluidStore, porous: bool, v0: &'a [f32]) -> PhaseState<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
     let n = fluid.len();
@@ -57,20 +52,15 @@ pub(super) fn bookkeeping<'a>(
     let mu = arena.alloc_slice_fill_copy(n, 0.0f32);
     let alpha_f = arena.alloc_slice_fill_copy(n, 0.0f32);
     let mass = arena.alloc_slice_fill_copy(n, 0.0f32);
-    let (given, v0) = match v0 {
-        Some(v0) => (Some(v0), &mut [][..]),
-        None => (None, arena.alloc_slice_fill_copy(n, 0.0f32)),
-    };
-    let write_v0 = given.is_none();
     tm.time(Pass::Phases, || {
         let cell = p.cell_volume();
         rest_density
             .par_chunks_mut(BLOCK)
             .zip(mu.par_chunks_mut(BLOCK))
             .zip(alpha_f.par_chunks_mut(BLOCK))
-            .zip(mass.par_chunks_mut(BLOCK).zip(opt_chunks(v0, write_v0, n)))
+            .zip(mass.par_chunks_mut(BLOCK))
             .enumerate()
-            .for_each(|(b, (((rho, mu), af), (m, mut v0)))| {
+            .for_each(|(b, (((rho, mu), af), m))| {
                 for q in 0..rho.len() {
                     let i = b * BLOCK + q;
                     let (mut r, mut v, mut a) = (0.0, 0.0, 0.0);
@@ -89,22 +79,8 @@ pub(super) fn bookkeeping<'a>(
                     mu[q] = v;
                     af[q] = a;
                     m[q] = r * cell;
-                    if let Some(v0) = v0.as_deref_mut() {
-                        v0[q] = iisph::row_weight(a) * a * cell;
-                    }
                 }
             });
     });
-    PhaseState { rest_density, mu, alpha_f, mass, v0: given.unwrap_or(v0) }
-}
-
-/// `v`'s blocks where `some`, else `None` for each of the blocks of `n`
-/// particles (`v` is then empty).
-fn opt_chunks(v: &mut [f32], some: bool, n: usize) -> impl IndexedParallelIterator<Item = Option<&mut [f32]>> {
-    use rayon::iter::Either;
-    if some {
-        Either::Left(v.par_chunks_mut(BLOCK).map(Some))
-    } else {
-        Either::Right((0..n.div_ceil(BLOCK)).into_par_iter().map(|_| None))
-    }
+    PhaseState { rest_density, mu, alpha_f, mass, v0 }
 }

@@ -19,6 +19,8 @@
 //! pass needs p^pore in its stress (P-Eq. 5), so p^pore comes first and
 //! the strain it sees lags by one step (0 at the start: strain-free).
 
+use super::neighbours::FluidDensity;
+use super::phases;
 use super::step::StepCtx;
 use super::timing::Pass;
 use super::{PairSet, Params, Workspace};
@@ -26,7 +28,7 @@ use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self};
-use porosph_kernels::neighbors::PairLists;
+use porosph_kernels::neighbors::{update_sums, PairLists};
 use porosph_kernels::porous::{
     absorbed_volume, capillary_normal, drained_boundary, fluid_phase_terms, pore_gradient, release_outside,
     take_inside, FluidPhase, FluidPhaseOut, Fractions, SolidPhase,
@@ -48,7 +50,9 @@ pub(super) struct Partition<'a> {
 /// solid particles within reach of each fluid particle (P-Eq. 15's
 /// weights), and P Alg. 4's fallback: where N_f = 0 every beta_k moves back
 /// to alpha_k; and the fill of each phase's absorbing solids around each
-/// fluid particle, for [`settle`] at the end of the step.
+/// fluid particle, for [`settle`] at the end of the step. The release
+/// changes the rest volumes V0 of the particles it moves: `density` (the
+/// neighbour pass's V0 and sum_j V0_j W_ij) follows them.
 pub(super) fn partition<'a>(
     cx: &mut StepCtx<'a>,
     fluid: &mut FluidStore,
@@ -56,6 +60,7 @@ pub(super) fn partition<'a>(
     walls: &WallStore,
     w: &Workspace,
     pairs: &PairSet,
+    density: &mut FluidDensity<'a>,
 ) -> Partition<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
@@ -68,6 +73,11 @@ pub(super) fn partition<'a>(
         for (alpha, beta) in outer_inner(fluid) {
             release_outside(n_f, alpha, beta);
         }
+        let v0 = zeros(arena, fluid.len());
+        phases::rest_volumes(p.cell_volume(), fluid, v0);
+        let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        update_sums(&pairs.ff, x, &p.kernel, density.v0, v0, density.own);
+        density.v0 = v0;
         // The fill of each phase's absorbing solids, for `settle`: each
         // solid particle counts with its current volume h^3 (1 + tr eps)
         // (the strain of the last step), so that a squeezed solid does not

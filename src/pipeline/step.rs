@@ -264,12 +264,12 @@ fn step_passes<'a>(
 
     // Alg. 1: the neighbours; N_f (P §5) and Alg. 4's fallback (beta back
     // to alpha where no porous solid is near).
-    let density = neighbours::search(cx, fluid, walls, solids, w, pairs, backend, porous);
-    let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w, pairs));
+    let mut density = neighbours::search(cx, fluid, walls, solids, w, pairs, backend);
+    let part = porous.then(|| porous::partition(cx, fluid, solids, walls, w, pairs, &mut density));
     // Alg. 1: phase bookkeeping (P-Eq. 10), densities and volumes (P §5,
     // §6.1), the outer fluid's viscosity and u* (P-Eq. 23).
-    let ph = phases::bookkeeping(cx, fluid, porous, density.as_ref().map(|d| d.v0));
-    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph, density.as_ref().map(|d| d.own));
+    let ph = phases::bookkeeping(cx, fluid, porous, density.v0);
+    let vols = volumes::volumes(cx, fluid, walls, solids, w, pairs, &ph, density.own);
     let pred = prediction::predict(cx, fluid, &pairs.ff, &mut w.visc_coef, &ph);
     st.viscosity_iterations = pred.iterations;
     // Alg. 2: the solids' strain (P-Eq. 4); phi, p^pore, Darcy flux and

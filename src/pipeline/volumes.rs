@@ -39,8 +39,8 @@ pub(super) struct Volumes<'a> {
 }
 
 /// Passes 2 and 4a-b; writes the output densities of the fluid and the walls.
-/// `ff_sums`: the fluid part of the fluid rows' sigma, where the neighbour
-/// pass took it (`neighbours::FluidDensity`; else from the pairs FF).
+/// `ff_sums`: the fluid part of the fluid rows' sigma, which the neighbour
+/// pass took (`neighbours::FluidDensity`).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn volumes<'a>(
     cx: &mut StepCtx<'a>,
@@ -50,7 +50,7 @@ pub(super) fn volumes<'a>(
     w: &Workspace,
     pairs: &PairSet,
     ph: &PhaseState,
-    ff_sums: Option<&[f32]>,
+    ff_sums: &[f32],
 ) -> Volumes<'a> {
     let (p, arena) = (cx.p, cx.arena);
     let tm = &mut cx.tm;
@@ -71,8 +71,7 @@ pub(super) fn volumes<'a>(
     let (sigma_s, vol_s) = (zeros(arena, ns), zeros(arena, ns));
     tm.time(Pass::Densities, || {
         let fs = (ns > 0).then_some(SolidPairs { pairs: &pairs.fs, values: &*v0_s });
-        let ff = ff_sums.map_or(FluidSums::Pairs(&pairs.ff), FluidSums::Done);
-        iisph::fluid_volumes(ff, &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
+        iisph::fluid_volumes(FluidSums::Done(ff_sums), &pairs.fb, fs, ph.v0, &walls.rest_volume, sigma, vol);
         iisph::wall_volumes(&pairs.bf, &w.active, &walls.sigma_static, &walls.rest_volume, ph.v0, sigma_b, vol_b);
         if ns > 0 {
             let nb = SolidNeighbours {
