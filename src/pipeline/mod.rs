@@ -186,10 +186,12 @@ struct Workspace {
     /// Solid positions in sorted order.
     solid_sorted: [Vec<f32>; 3],
     solid_grid: CellGrid,
-    /// Cells within one cell of a solid cell (each step), and their keys:
-    /// only fluid queries there can have solid neighbours.
+    /// Cells within one cell of a solid cell, and their keys: only fluid
+    /// queries there can have solid neighbours; rebuilt when the solids'
+    /// occupied cells (`solid_near_of`, those it was built from) change.
     solid_near: CellGrid,
     solid_near_keys: Vec<u64>,
+    solid_near_of: Vec<u64>,
     /// omega_s, each solid particle's own body's share of its pressure
     /// row's neighbourhood, and V0_s, its rest volume in the solve (store
     /// order; `volumes::rest_rows`).

@@ -118,8 +118,12 @@ fn solid_pairs(
     w.solid_keys.clear();
     w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));
     w.solid_grid.build(&w.solid_keys, support);
-    w.solid_grid.dilated_keys_into(&mut w.solid_near_keys);
-    w.solid_near.build(&w.solid_near_keys, support);
+    // The dilation sorts 27 keys a cell: only when the solids' cells change.
+    if w.solid_grid.cells != w.solid_near_of {
+        w.solid_grid.dilated_keys_into(&mut w.solid_near_keys);
+        w.solid_near.build(&w.solid_near_keys, support);
+        w.solid_near_of.clone_from(&w.solid_grid.cells);
+    }
     for (dst, src) in w.solid_sorted.iter_mut().zip([&solids.x, &solids.y, &solids.z]) {
         dst.clear();
         dst.extend(w.solid_perm.iter().map(|&i| src[i as usize]));
