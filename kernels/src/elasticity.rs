@@ -528,6 +528,13 @@ impl CarriedResidual {
         self.valid = false;
     }
 
+    /// The product (M A) v that the last solve's recurrence implies for its
+    /// answer v (rhs - its residual); `None` if it kept none (forgotten, or
+    /// nothing drove the solve: v = 0 exactly).
+    pub fn product(&self) -> Option<&[Vec3]> {
+        self.valid.then_some(&self.av[..])
+    }
+
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         12 * (self.v.capacity() + self.av.capacity())

@@ -331,9 +331,9 @@ impl SolidModel for Mixed {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
-        continued: bool,
+        last: bool,
     ) -> SolidStats {
-        self.elastic.respond(solids, force, accel, tolerance, max_iterations, continued)
+        self.elastic.respond(solids, force, accel, tolerance, max_iterations, last)
     }
 
     fn mobility(&self, solids: &SolidStore, contact: &[u32], out: &mut [f32]) {

@@ -91,6 +91,9 @@ pub struct Params {
     pub viscosity_tolerance: f32,
     /// Relative residual of the elastic conjugate gradients.
     pub elastic_tolerance: f32,
+    /// Relative CG residual of the solids' prediction (the last response
+    /// takes on what it leaves).
+    pub elastic_prediction_tolerance: f32,
     /// Largest number of elastic conjugate-gradient iterations.
     pub elastic_max_iterations: u32,
     /// Elastic body of each solid entry: entries with the same `body` name
@@ -142,7 +145,9 @@ pub struct StepStats {
     pub viscosity_iterations: u32,
     /// Conjugate-gradient iterations of the elastic solve (0 without solids).
     pub cg_iterations: u32,
-    /// Relative residual |r|/|b| after the elastic solve.
+    /// Relative residual |r|/|b| after the elastic solve: that of the
+    /// pressure solve's last response, which also solves what the
+    /// prediction left (`elastic_prediction_tolerance`).
     pub cg_residual: f32,
     /// Explicit sub-steps of the granular continuum within the step (0
     /// without granular solids).

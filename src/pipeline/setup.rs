@@ -66,6 +66,7 @@ impl Params {
             },
             viscosity_tolerance: s.viscosity_tolerance,
             elastic_tolerance: s.elastic_tolerance,
+            elastic_prediction_tolerance: s.elastic_prediction_tolerance,
             elastic_max_iterations: s.elastic_max_iterations,
             solid_group: {
                 let mut names: Vec<&str> = Vec::new();
@@ -130,7 +131,7 @@ impl Params {
             &self.particle_rest_mass(solids),
             &self.solid_lame,
             &self.kernel,
-            self.elastic_tolerance,
+            self.elastic_prediction_tolerance,
             self.elastic_max_iterations,
         );
         match granular {

@@ -13,8 +13,8 @@ use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::elasticity::{
-    conjugate_gradients, conjugate_gradients_from, deform, forces, stress_rl, trace, CarriedResidual, CgBuffers,
-    CgStats, Deformation, Lame, RestState, System,
+    conjugate_gradients_from, deform, forces, stress_rl, trace, CarriedResidual, CgBuffers, CgStats, Deformation, Lame,
+    RestState, System,
 };
 use porosph_kernels::granular::Walls;
 use porosph_kernels::kernel::Kernel;
@@ -64,10 +64,15 @@ pub trait SolidModel: Send + Sync {
     /// entry) of the particles under the forces `force` (N) within this
     /// step: the solution of the implicit step's system for a force alone
     /// (fixed particles: 0), to the relative residual `tolerance` or
-    /// `max_iterations`. `continued`: this solve continues the last one of
-    /// this step's system from its answer (a Jacobi sweep's response after
-    /// the last sweep's), so a model may carry its residual over instead
-    /// of recomputing it.
+    /// `max_iterations`. `last` false: a Jacobi sweep's response, which
+    /// continues the last one of this step's system from its answer, so a
+    /// model may carry its residual over instead of recomputing it. `last`
+    /// true: the step's final response, to the solve's final pressure
+    /// forces, from its true residual; a model whose prediction stopped
+    /// short of `tolerance` also takes on what it left unsolved (its
+    /// residual / dt, added to the force), so that the predicted velocities
+    /// plus dt `accel` solve the implicit step with the force to
+    /// `tolerance`.
     fn respond(
         &mut self,
         solids: &SolidStore,
@@ -75,7 +80,7 @@ pub trait SolidModel: Send + Sync {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
-        continued: bool,
+        last: bool,
     ) -> SolidStats;
 
     /// An estimate of each particle's mobility, d a_i / d F_i of
@@ -132,8 +137,9 @@ pub struct Peer2018 {
     rest: RestState,
     /// Lamé parameters of each particle (from its body).
     lame: Vec<Lame>,
-    /// Relative residual at which CG stops.
-    tolerance: f32,
+    /// Relative residual at which the prediction's CG stops (the
+    /// responses get theirs from the pressure solve).
+    prediction_tolerance: f32,
     max_iterations: u32,
     /// dt of the last prediction (the system of the response).
     dt: f32,
@@ -148,8 +154,14 @@ pub struct Peer2018 {
     rhs: Vec<Vec3>,
     cg: CgBuffers,
     /// The last response's residual, for the next sweep's
-    /// ([`SolidModel::respond`]'s `continued`).
+    /// ([`SolidModel::respond`], not `last`).
     carry: CarriedResidual,
+    /// The prediction's answer and the product its recurrence implies:
+    /// rhs - that is what the prediction left unsolved, which the step's
+    /// last response takes on.
+    prediction: CarriedResidual,
+    /// The last response's force with the prediction's residual / dt.
+    last_force: Vec<Vec3>,
     /// 1 / diag(M A) of this step's system (`System::inverse_diagonal`):
     /// CG's Jacobi preconditioner and the particles' mobility.
     jacobi: Vec<f32>,
@@ -166,14 +178,16 @@ impl Peer2018 {
     /// The model for the particles of `solids` (rest positions, and the
     /// Lamé parameters of each entry `body_lame`), `group` the elastic body
     /// of each particle (rest neighbours only within a body) and `rest_mass`
-    /// its mass before it absorbed anything (the rest volumes).
+    /// its mass before it absorbed anything (the rest volumes); the
+    /// prediction's CG stops at the relative residual
+    /// `prediction_tolerance`.
     pub fn new(
         solids: &SolidStore,
         group: &[u32],
         rest_mass: &[f32],
         body_lame: &[Lame],
         kernel: &Kernel,
-        tolerance: f32,
+        prediction_tolerance: f32,
         max_iterations: u32,
     ) -> Self {
         let x0: Vec<Vec3> = (0..solids.len()).map(|i| Vec3::new(solids.x0[i], solids.y0[i], solids.z0[i])).collect();
@@ -182,7 +196,7 @@ impl Peer2018 {
         Peer2018 {
             rest,
             lame,
-            tolerance,
+            prediction_tolerance,
             max_iterations,
             dt: 0.0,
             x: Vec::new(),
@@ -195,6 +209,8 @@ impl Peer2018 {
             rhs: Vec::new(),
             cg: CgBuffers::default(),
             carry: CarriedResidual::default(),
+            prediction: CarriedResidual::default(),
+            last_force: Vec::new(),
             jacobi: Vec::new(),
             group: group.to_vec(),
             normal: Vec::new(),
@@ -260,7 +276,9 @@ impl SolidModel for Peer2018 {
         forces(&self.rest, &self.t, &mut self.force);
         s.stress.copy_from_slice(&self.von_mises);
         // PHYSICS.md §3.3: (M + dt^2 K) v = m v + dt (m g + f), warm start
-        // v + dt g; fixed particles keep their prescribed velocity.
+        // v + dt g; fixed particles keep their prescribed velocity. Solved
+        // to the prediction's tolerance only: the last response takes on
+        // the rest (`respond`).
         self.v.clear();
         self.v.extend((0..n).map(|i| {
             let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
@@ -298,8 +316,16 @@ impl SolidModel for Peer2018 {
         };
         sys.inverse_diagonal(&mut jacobi);
         let sys = System { jacobi: Some(&jacobi), coarse: Some(&self.modes), ..sys };
-        let stats =
-            conjugate_gradients(&sys, &self.rhs, &mut self.v, self.tolerance, self.max_iterations, &mut self.cg);
+        self.prediction.forget();
+        let stats = conjugate_gradients_from(
+            &sys,
+            &self.rhs,
+            &mut self.v,
+            self.prediction_tolerance,
+            self.max_iterations,
+            &mut self.cg,
+            &mut self.prediction,
+        );
         self.jacobi = jacobi;
         stats
     }
@@ -315,15 +341,35 @@ impl SolidModel for Peer2018 {
         accel: &mut [Vec3],
         tolerance: f32,
         max_iterations: u32,
-        continued: bool,
+        last: bool,
     ) -> SolidStats {
         let mut cg = std::mem::take(&mut self.cg);
         let mut carry = std::mem::take(&mut self.carry);
-        if !continued {
+        if last {
             carry.forget();
         }
+        // The last response also solves the rest of the prediction's system:
+        // force + (rhs - (M A) v_pred) / dt.
+        let mut last_force = std::mem::take(&mut self.last_force);
+        let product = self.prediction.product().filter(|_| last);
+        let force = if let Some(av) = product {
+            let inv_dt = 1.0 / self.dt;
+            let rhs = &self.rhs;
+            last_force.clear();
+            last_force.extend((0..force.len()).map(|i| {
+                if s.fixed[i] != 0 {
+                    force[i]
+                } else {
+                    force[i] + (rhs[i] - av[i]) * inv_dt
+                }
+            }));
+            &last_force[..]
+        } else {
+            force
+        };
         let stats =
             conjugate_gradients_from(&self.system(s), force, accel, tolerance, max_iterations, &mut cg, &mut carry);
+        self.last_force = last_force;
         self.cg = cg;
         self.carry = carry;
         stats
@@ -397,8 +443,8 @@ impl Compliance for BodyResponse<'_> {
             if exact { (self.tolerance, self.max_iterations) } else { (self.tolerance, RESPONSE_ITERATIONS_PER_SWEEP) };
         // Every sweep's response continues the last one (the same system,
         // warm-started from its answer); the exact one at the end starts
-        // from its true residual.
-        let stats = self.model.respond(self.solids, self.force, self.accel, tol, max, !exact);
+        // from its true residual and takes on what the prediction left.
+        let stats = self.model.respond(self.solids, self.force, self.accel, tol, max, exact);
         if exact {
             self.stats = stats;
         }

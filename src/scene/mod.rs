@@ -218,6 +218,17 @@ pub struct Simulation {
     #[serde(default = "defaults::elastic_tolerance")]
     #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
     pub elastic_tolerance: f32,
+    /// The relative residual of the solids' prediction
+    ///
+    /// |r| / |b| at which the conjugate gradients of the prediction (the
+    /// solids' velocities without the fluid's pressure, which the pressure
+    /// solve's solid rows read) stop. What it leaves unsolved the step's
+    /// last response to the pressure forces takes on, to
+    /// `elastic_tolerance`, so the solids' new velocities solve the
+    /// implicit step to that tolerance either way (PHYSICS.md §3.3).
+    #[serde(default = "defaults::elastic_prediction_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0, "maximum" = 1))]
+    pub elastic_prediction_tolerance: f32,
     /// The largest number of conjugate-gradient iterations
     ///
     /// The unpreconditioned CG of the elastic solve needs about
@@ -314,6 +325,9 @@ mod defaults {
     }
     pub fn elastic_tolerance() -> f32 {
         1e-4
+    }
+    pub fn elastic_prediction_tolerance() -> f32 {
+        1e-2
     }
     pub fn elastic_max_iterations() -> u32 {
         1000
