@@ -184,9 +184,9 @@ fn dropped_block_keeps_the_fluid_out_and_stays_stable() {
 /// closer to the reference than halving the pressure solve's own tolerance
 /// (max_density_error 1e-3 -> 5e-4) moves it, and the step's CG residual
 /// (`cg_residual`) stays within `elastic_tolerance`. Measured 2026-12-06:
-/// 1.22e-2 d against 3.22e-2 d (the prediction at 1e-4: 5.45e-4 d; at
-/// 1e-3: 2.40e-3 d), 3,352 CG iterations against 4,369 with the
-/// prediction at 1e-4.
+/// 1.24e-2 d against 3.22e-2 d (the prediction at 1e-4: 8.10e-4 d), 2,035
+/// CG iterations against 3,037 with the prediction at 1e-4 (4,369 before
+/// the last response took on the prediction's residual).
 #[test]
 fn a_loose_prediction_leaves_the_elastic_step_to_the_last_response() {
     let d = 0.01f32;

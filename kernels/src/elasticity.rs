@@ -508,7 +508,7 @@ pub fn conjugate_gradients(
     max_iterations: u32,
     buf: &mut CgBuffers,
 ) -> CgStats {
-    cg(sys, rhs, v, tol, max_iterations, buf, None)
+    cg(sys, rhs, None, v, tol, max_iterations, buf, None)
 }
 
 /// What a solve leaves for the next solve of the same system
@@ -560,12 +560,33 @@ pub fn conjugate_gradients_from(
     buf: &mut CgBuffers,
     carry: &mut CarriedResidual,
 ) -> CgStats {
-    cg(sys, rhs, v, tol, max_iterations, buf, Some(carry))
+    cg(sys, rhs, None, v, tol, max_iterations, buf, Some(carry))
 }
 
+/// [`conjugate_gradients_from`] with the tolerance relative to the norm of
+/// `reference` where that is larger than the right-hand side's: the solve
+/// of a correction to another solve's answer, whose residual counts against
+/// that solve's right-hand side (the step's last response, which also
+/// solves what the prediction left: `reference` = b / dt + F).
+#[allow(clippy::too_many_arguments)]
+pub fn conjugate_gradients_relative_to(
+    sys: &System,
+    rhs: &[Vec3],
+    reference: &[Vec3],
+    v: &mut [Vec3],
+    tol: f32,
+    max_iterations: u32,
+    buf: &mut CgBuffers,
+    carry: &mut CarriedResidual,
+) -> CgStats {
+    cg(sys, rhs, Some(reference), v, tol, max_iterations, buf, Some(carry))
+}
+
+#[allow(clippy::too_many_arguments)]
 fn cg(
     sys: &System,
     rhs: &[Vec3],
+    reference: Option<&[Vec3]>,
     v: &mut [Vec3],
     tol: f32,
     max_iterations: u32,
@@ -643,6 +664,13 @@ fn cg(
         }
     };
     let mut rr = rr0;
+    // The norm the tolerance is relative to.
+    let b2 = match reference {
+        Some(b) => {
+            b2.max(sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * b[i]).length_squared()) }))
+        }
+        None => b2,
+    };
     let goal = f64::from(tol).powi(2) * b2;
     let mut it = 0;
     while it < max_iterations && rr > goal && rr > 0.0 {

@@ -13,8 +13,8 @@ use crate::backend::passes::Compliance;
 use crate::store::SolidStore;
 use glam::{Mat3, Quat, Vec3};
 use porosph_kernels::elasticity::{
-    conjugate_gradients_from, deform, forces, stress_rl, trace, CarriedResidual, CgBuffers, CgStats, Deformation, Lame,
-    RestState, System,
+    conjugate_gradients_from, conjugate_gradients_relative_to, deform, forces, stress_rl, trace, CarriedResidual,
+    CgBuffers, CgStats, Deformation, Lame, RestState, System,
 };
 use porosph_kernels::granular::Walls;
 use porosph_kernels::kernel::Kernel;
@@ -160,8 +160,10 @@ pub struct Peer2018 {
     /// rhs - that is what the prediction left unsolved, which the step's
     /// last response takes on.
     prediction: CarriedResidual,
-    /// The last response's force with the prediction's residual / dt.
+    /// The last response's force with the prediction's residual / dt, and
+    /// with its whole right-hand side / dt (the norm of its tolerance).
     last_force: Vec<Vec3>,
+    whole: Vec<Vec3>,
     /// 1 / diag(M A) of this step's system (`System::inverse_diagonal`):
     /// CG's Jacobi preconditioner and the particles' mobility.
     jacobi: Vec<f32>,
@@ -211,6 +213,7 @@ impl Peer2018 {
             carry: CarriedResidual::default(),
             prediction: CarriedResidual::default(),
             last_force: Vec::new(),
+            whole: Vec::new(),
             jacobi: Vec::new(),
             group: group.to_vec(),
             normal: Vec::new(),
@@ -349,27 +352,34 @@ impl SolidModel for Peer2018 {
             carry.forget();
         }
         // The last response also solves the rest of the prediction's system:
-        // force + (rhs - (M A) v_pred) / dt.
-        let mut last_force = std::mem::take(&mut self.last_force);
+        // force + (b - (M A) v_pred) / dt, to the tolerance relative to the
+        // step's whole right-hand side b / dt + force (v_pred + dt a solves
+        // (M A) v = b + dt force).
+        let (mut last_force, mut whole) = (std::mem::take(&mut self.last_force), std::mem::take(&mut self.whole));
         let product = self.prediction.product().filter(|_| last);
-        let force = if let Some(av) = product {
+        let stats = if let Some(av) = product {
             let inv_dt = 1.0 / self.dt;
-            let rhs = &self.rhs;
+            let b = &self.rhs;
+            let free = |i: usize, f: Vec3| if s.fixed[i] != 0 { force[i] } else { f };
             last_force.clear();
-            last_force.extend((0..force.len()).map(|i| {
-                if s.fixed[i] != 0 {
-                    force[i]
-                } else {
-                    force[i] + (rhs[i] - av[i]) * inv_dt
-                }
-            }));
-            &last_force[..]
+            last_force.extend((0..force.len()).map(|i| free(i, force[i] + (b[i] - av[i]) * inv_dt)));
+            whole.clear();
+            whole.extend((0..force.len()).map(|i| free(i, force[i] + b[i] * inv_dt)));
+            let sys = self.system(s);
+            conjugate_gradients_relative_to(
+                &sys,
+                &last_force,
+                &whole,
+                accel,
+                tolerance,
+                max_iterations,
+                &mut cg,
+                &mut carry,
+            )
         } else {
-            force
+            conjugate_gradients_from(&self.system(s), force, accel, tolerance, max_iterations, &mut cg, &mut carry)
         };
-        let stats =
-            conjugate_gradients_from(&self.system(s), force, accel, tolerance, max_iterations, &mut cg, &mut carry);
-        self.last_force = last_force;
+        (self.last_force, self.whole) = (last_force, whole);
         self.cg = cg;
         self.carry = carry;
         stats
@@ -397,6 +407,8 @@ impl SolidModel for Peer2018 {
             + 4 * self.von_mises.capacity()
             + self.cg.bytes()
             + self.carry.bytes()
+            + self.prediction.bytes()
+            + 12 * (self.last_force.capacity() + self.whole.capacity())
             + 4 * self.jacobi.capacity()
             + 4 * self.group.capacity()
             + 12 * self.normal.capacity()
