@@ -564,15 +564,16 @@ pub fn conjugate_gradients_from(
 }
 
 /// [`conjugate_gradients_from`] with the tolerance relative to the norm of
-/// `reference` where that is larger than the right-hand side's: the solve
-/// of a correction to another solve's answer, whose residual counts against
-/// that solve's right-hand side (the step's last response, which also
-/// solves what the prediction left: `reference` = b / dt + F).
+/// the vector `reference(i)` where that is larger than the right-hand
+/// side's: the solve of a correction to another solve's answer, whose
+/// residual counts against that solve's right-hand side (the step's last
+/// response, which also solves what the prediction left: `reference` = b /
+/// dt + F).
 #[allow(clippy::too_many_arguments)]
 pub fn conjugate_gradients_relative_to(
     sys: &System,
     rhs: &[Vec3],
-    reference: &[Vec3],
+    reference: &(dyn Fn(usize) -> Vec3 + Sync),
     v: &mut [Vec3],
     tol: f32,
     max_iterations: u32,
@@ -586,7 +587,7 @@ pub fn conjugate_gradients_relative_to(
 fn cg(
     sys: &System,
     rhs: &[Vec3],
-    reference: Option<&[Vec3]>,
+    reference: Option<&(dyn Fn(usize) -> Vec3 + Sync)>,
     v: &mut [Vec3],
     tol: f32,
     max_iterations: u32,
@@ -667,7 +668,7 @@ fn cg(
     // The norm the tolerance is relative to.
     let b2 = match reference {
         Some(b) => {
-            b2.max(sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * b[i]).length_squared()) }))
+            b2.max(sum_f64(n, parts, |i| if fixed[i] != 0 { 0.0 } else { f64::from((scale * b(i)).length_squared()) }))
         }
         None => b2,
     };

@@ -226,7 +226,7 @@ fn pair_lists_match_brute_force_bit_for_bit() {
 /// random clouds and a lattice, both kernel shapes, non-uniform values.
 #[test]
 fn gradient_pairs_sum_what_stored_values_sum() {
-    use porosph_kernels::iisph::{fluid_volumes, FluidSums};
+    use porosph_kernels::iisph::FluidSums;
     use porosph_kernels::kernel::KernelShape;
     use porosph_kernels::neighbors::build_gradient_pairs;
     let h = 0.05;
@@ -251,20 +251,28 @@ fn gradient_pairs_sum_what_stored_values_sum() {
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!((bits(&a.gx), bits(&a.gy), bits(&a.gz)), (bits(&b.gx), bits(&b.gy), bits(&b.gz)));
             }
-            // No wall pairs: sigma is the fluid sum alone.
-            let mut none = PairLists::default();
-            let far = [1e3f32; 1];
-            let mut wg = CellGrid::default();
-            wg.build(&[porosph_kernels::grid::morton(porosph_kernels::grid::cell_of(1e3, 1e3, 1e3, 1.0 / h))], h);
-            build_pairs(&mut none, p, Vel { x: &far, y: &far, z: &far }, &wg, None, &kernel);
-            let run = |ff: FluidSums| {
-                let (mut sigma, mut vol) = (vec![0.0f32; n], vec![0.0f32; n]);
-                fluid_volumes(ff, &none, None, &val, &[1.0], &mut sigma, &mut vol);
-                sigma.iter().map(|s| s.to_bits()).collect::<Vec<_>>()
-            };
-            assert_eq!(run(FluidSums::Done(&sums)), run(FluidSums::Pairs(&with_w)), "{shape:?}, {n} points");
+            let bits = |sigma: Vec<f32>| sigma.iter().map(|s| s.to_bits()).collect::<Vec<_>>();
+            let (done, pairs) = (FluidSums::Done(&sums), FluidSums::Pairs(&with_w));
+            let run = |ff| bits(fluid_sigma(ff, p, &val, &kernel));
+            assert_eq!(run(done), run(pairs), "{shape:?}, {n} points");
         }
     }
+}
+
+/// `iisph::fluid_volumes`' sigma of the points `p` from the fluid sums `ff`
+/// with the values `val`, and no wall pairs (one wall particle out of
+/// reach): the fluid sum alone.
+fn fluid_sigma(ff: porosph_kernels::iisph::FluidSums, p: Vel, val: &[f32], kernel: &Kernel) -> Vec<f32> {
+    let h = kernel.support;
+    let mut none = PairLists::default();
+    let far = [1e3f32; 1];
+    let mut wg = CellGrid::default();
+    wg.build(&[porosph_kernels::grid::morton(porosph_kernels::grid::cell_of(1e3, 1e3, 1e3, 1.0 / h))], h);
+    build_pairs(&mut none, p, Vel { x: &far, y: &far, z: &far }, &wg, None, kernel);
+    let n = p.len();
+    let (mut sigma, mut vol) = (vec![0.0f32; n], vec![0.0f32; n]);
+    porosph_kernels::iisph::fluid_volumes(ff, &none, None, val, &[1.0], &mut sigma, &mut vol);
+    sigma
 }
 
 /// `update_sums`: the sums of `build_gradient_pairs` taken with old values,
@@ -276,7 +284,7 @@ fn gradient_pairs_sum_what_stored_values_sum() {
 /// unchanged rows stay bit for bit.
 #[test]
 fn updated_gradient_pair_sums_follow_changed_values() {
-    use porosph_kernels::iisph::{fluid_volumes, FluidSums};
+    use porosph_kernels::iisph::FluidSums;
     use porosph_kernels::kernel::KernelShape;
     use porosph_kernels::neighbors::{build_gradient_pairs, update_sums};
     let h = 0.05;
@@ -297,17 +305,8 @@ fn updated_gradient_pair_sums_follow_changed_values() {
         build_gradient_pairs(&mut without, p, p, &g, None, &kernel, &old, &mut sums);
         let before = sums.clone();
         update_sums(&without, p, &kernel, &old, &new, &mut sums);
-        let mut none = PairLists::default();
-        let far = [1e3f32; 1];
-        let mut wg = CellGrid::default();
-        wg.build(&[porosph_kernels::grid::morton(porosph_kernels::grid::cell_of(1e3, 1e3, 1e3, 1.0 / h))], h);
-        build_pairs(&mut none, p, Vel { x: &far, y: &far, z: &far }, &wg, None, &kernel);
-        let run = |ff: FluidSums| {
-            let (mut sigma, mut vol) = (vec![0.0f32; n], vec![0.0f32; n]);
-            fluid_volumes(ff, &none, None, &new, &[1.0], &mut sigma, &mut vol);
-            sigma
-        };
-        let (got, want) = (run(FluidSums::Done(&sums)), run(FluidSums::Pairs(&with_w)));
+        let got = fluid_sigma(FluidSums::Done(&sums), p, &new, &kernel);
+        let want = fluid_sigma(FluidSums::Pairs(&with_w), p, &new, &kernel);
         let near_changed = pairs_of(&with_w).iter().map(|r| r.iter().any(|&j| changed[j as usize])).collect::<Vec<_>>();
         let (mut touched, mut worst) = (0, 0.0f32);
         for i in 0..n {

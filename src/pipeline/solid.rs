@@ -160,10 +160,8 @@ pub struct Peer2018 {
     /// rhs - that is what the prediction left unsolved, which the step's
     /// last response takes on.
     prediction: CarriedResidual,
-    /// The last response's force with the prediction's residual / dt, and
-    /// with its whole right-hand side / dt (the norm of its tolerance).
+    /// The last response's force with the prediction's residual / dt.
     last_force: Vec<Vec3>,
-    whole: Vec<Vec3>,
     /// 1 / diag(M A) of this step's system (`System::inverse_diagonal`):
     /// CG's Jacobi preconditioner and the particles' mobility.
     jacobi: Vec<f32>,
@@ -213,7 +211,6 @@ impl Peer2018 {
             carry: CarriedResidual::default(),
             prediction: CarriedResidual::default(),
             last_force: Vec::new(),
-            whole: Vec::new(),
             jacobi: Vec::new(),
             group: group.to_vec(),
             normal: Vec::new(),
@@ -355,7 +352,7 @@ impl SolidModel for Peer2018 {
         // force + (b - (M A) v_pred) / dt, to the tolerance relative to the
         // step's whole right-hand side b / dt + force (v_pred + dt a solves
         // (M A) v = b + dt force).
-        let (mut last_force, mut whole) = (std::mem::take(&mut self.last_force), std::mem::take(&mut self.whole));
+        let mut last_force = std::mem::take(&mut self.last_force);
         let product = self.prediction.product().filter(|_| last);
         let stats = if let Some(av) = product {
             let inv_dt = 1.0 / self.dt;
@@ -363,8 +360,7 @@ impl SolidModel for Peer2018 {
             let free = |i: usize, f: Vec3| if s.fixed[i] != 0 { force[i] } else { f };
             last_force.clear();
             last_force.extend((0..force.len()).map(|i| free(i, force[i] + (b[i] - av[i]) * inv_dt)));
-            whole.clear();
-            whole.extend((0..force.len()).map(|i| free(i, force[i] + b[i] * inv_dt)));
+            let whole = |i: usize| force[i] + b[i] * inv_dt;
             let sys = self.system(s);
             conjugate_gradients_relative_to(
                 &sys,
@@ -379,7 +375,7 @@ impl SolidModel for Peer2018 {
         } else {
             conjugate_gradients_from(&self.system(s), force, accel, tolerance, max_iterations, &mut cg, &mut carry)
         };
-        (self.last_force, self.whole) = (last_force, whole);
+        self.last_force = last_force;
         self.cg = cg;
         self.carry = carry;
         stats
@@ -408,7 +404,7 @@ impl SolidModel for Peer2018 {
             + self.cg.bytes()
             + self.carry.bytes()
             + self.prediction.bytes()
-            + 12 * (self.last_force.capacity() + self.whole.capacity())
+            + 12 * self.last_force.capacity()
             + 4 * self.jacobi.capacity()
             + 4 * self.group.capacity()
             + 12 * self.normal.capacity()
