@@ -553,6 +553,7 @@ fn bench(a: &Args) {
         sim.memory().iter().filter(|(_, b)| *b > 0).map(|(k, b)| format!("{k} {:.0}", per(*b))).collect();
     println!("  of which, per fluid particle: {}", parts.join(", "));
     println!("  step arena used     {:.0} per fluid particle (its high-water mark)", per(sim.arena_used()));
+    println!("  pass scratch used   {:.0} per fluid particle (its high-water mark)", per(sim.scratch_used()));
     println!("backend              {}", a.backend);
     let nc = clean_s.len();
     println!(

@@ -61,7 +61,7 @@ impl Passes for Cpu {
         let inp = &prob.input;
         let n = inp.alpha_f.len();
         let density = arena.alloc_slice_fill_iter(inp.phases.iter().map(|c| c.density));
-        let sums = MixtureSums { arena, n, density, conservative: inp.conservative };
+        let mut sums = MixtureSums::new(arena, n, density, inp.conservative);
         // P-Eq. 11: the outer drift over the pressure solve's pairs.
         let DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } } = out;
         let pv = PhaseVelocityInput {
@@ -241,17 +241,23 @@ struct MixtureSums<'a> {
     n: usize,
     density: &'a [f32],
     conservative: bool,
+    /// The mean velocities s and m, overwritten by each call.
+    s: VelMut<'a>,
+    m: VelMut<'a>,
 }
 
-impl MixtureSums<'_> {
-    fn drift_velocities(&self, frac: &[&[f32]], frac_f: &[f32], v: [&mut [f32]; 3], w: [&mut [f32]; 3]) {
+impl<'a> MixtureSums<'a> {
+    fn new(arena: &'a Bump, n: usize, density: &'a [f32], conservative: bool) -> Self {
+        Self { arena, n, density, conservative, s: zeros3(arena, n), m: zeros3(arena, n) }
+    }
+
+    fn drift_velocities(&mut self, frac: &[&[f32]], frac_f: &[f32], v: [&mut [f32]; 3], w: [&mut [f32]; 3]) {
         let (arena, n) = (self.arena, self.n);
         let [ux, uy, uz] = v;
         let [fx, fy, fz] = w;
-        let (mut s, mut m) = (zeros3(arena, n), zeros3(arena, n));
         let w = PhaseVel::split(arena, Vel { x: fx, y: fy, z: fz }, n);
-        drift::mixture_velocity(frac, frac_f, self.density, w, s.reborrow(), m.reborrow());
-        let (s, m) = (s.into_view(), m.into_view());
+        drift::mixture_velocity(frac, frac_f, self.density, w, self.s.reborrow(), self.m.reborrow());
+        let (s, m) = (self.s.view(), self.m.view());
         let m = if self.conservative { Some(m) } else { None };
         let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
         let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));

@@ -82,23 +82,30 @@ pub(super) fn drift<'a>(
     let n = fluid.len();
     let np = fluid.alpha.len();
     let porous = terms.is_some();
+    // With pass 11's porous form (`without_phase_term`) the drift
+    // velocities of P-Eq. 11 are only its input: pass scratch; else kept.
+    let momentum = terms.filter(|_| p.pore_drift != 0.0 && p.drift_momentum_sign != 0.0);
+    let tmp = cx.scratch.fresh();
     let alpha = per_phase(arena, &fluid.alpha);
-    let (mut u, mut f) = (zeros3(arena, np * n), zeros3(arena, np * n));
+    let (nk, ns) = if momentum.is_some() { (0, np * n) } else { (np * n, 0) };
+    let (mut u_kept, mut u_input) = (zeros3(arena, nk), zeros3(tmp, ns));
+    let mut f = zeros3(arena, np * n);
     let ni = if porous { np * n } else { 0 };
-    let (mut bu, mut bf) = (zeros3(arena, ni), zeros3(arena, ni));
+    // The inner drift velocities are only the inner fluxes' input.
+    let (mut bu, mut bf) = (zeros3(tmp, ni), zeros3(arena, ni));
     let (beta, beta_f): (&[&[f32]], &[f32]) = if porous {
-        let beta = per_phase(arena, &fluid.beta);
-        (beta, arena.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
+        let beta = per_phase(tmp, &fluid.beta);
+        (beta, tmp.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
     } else {
         (&[], &[])
     };
-    let phases: &[PhaseConstants] = arena.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
+    let phases: &[PhaseConstants] = tmp.alloc_slice_fill_iter((0..np).map(|k| PhaseConstants {
         density: p.phase_density[k],
         tau: p.phase_drift_tau[k],
         sigma: p.phase_drift_sigma[k],
     }));
     let report = cx.tm.time(Pass::Drift, || {
-        let pf = zeros(arena, if p.fraction_pressure { n } else { 0 });
+        let pf = zeros(tmp, if p.fraction_pressure { n } else { 0 });
         if p.fraction_pressure {
             drift::pressure_per_fraction(&fluid.pressure, ph.alpha_f, pf);
         }
@@ -129,9 +136,10 @@ pub(super) fn drift<'a>(
             ff: pairs.ff,
             ffb: pairs.ffb.filter(|_| porous),
         };
-        let out = DriftOutput { u: u.reborrow(), f: f.reborrow() };
+        let u = if momentum.is_some() { u_input.reborrow() } else { u_kept.reborrow() };
+        let out = DriftOutput { u, f: f.reborrow() };
         let inner = porous.then_some(DriftOutput { u: bu.reborrow(), f: bf.reborrow() });
-        backend.drift(&prob, out, inner, arena)
+        backend.drift(&prob, out, inner, tmp)
     });
     cx.tm.set_gpu(Pass::Drift, report.gpu_ms);
     // The drift speed of the time step rule: the advective part (P-Eq. 11
@@ -160,10 +168,9 @@ pub(super) fn drift<'a>(
             drift::max_advective_speed(&outer).max(inner.map_or(0.0, |i| drift::max_advective_speed(&i)))
         })
     };
-    let u = u.into_view();
-    let u_momentum = match terms {
-        Some(t) if p.pore_drift != 0.0 && p.drift_momentum_sign != 0.0 => cx.tm.time(Pass::DriftMomentum, || {
-            let (mut out, mut mean) = (zeros3(arena, np * n), zeros3(arena, n));
+    let u_momentum = match momentum {
+        Some(t) => cx.tm.time(Pass::DriftMomentum, || {
+            let (mut out, mut mean) = (zeros3(arena, np * n), zeros3(tmp, n));
             let density = &p.phase_density;
             porosph_kernels::porous::without_phase_term(
                 alpha,
@@ -171,13 +178,13 @@ pub(super) fn drift<'a>(
                 density,
                 t.grad_pore,
                 -p.pore_drift,
-                u,
+                u_input.into_view(),
                 out.reborrow(),
                 mean.reborrow(),
             );
             out.into_view()
         }),
-        _ => u,
+        None => u_kept.into_view(),
     };
     Drift {
         u: PhaseVel::split(arena, u_momentum, n),
@@ -198,22 +205,23 @@ pub(super) fn drift_momentum(
     drift: &Drift,
     ap: VelMut,
 ) {
-    let (p, arena) = (cx.p, cx.arena);
+    let p = cx.p;
     if p.drift_momentum_sign == 0.0 {
         return;
     }
+    let tmp = cx.scratch.fresh();
     cx.tm.time(Pass::DriftMomentum, || {
-        let mut d = zeros3(arena, fluid.len());
+        let mut d = zeros3(tmp, fluid.len());
         let inp = DriftMomentumInput {
             ff,
-            alpha: per_phase(arena, &fluid.alpha),
+            alpha: per_phase(tmp, &fluid.alpha),
             u_drift: drift.u,
             density: &p.phase_density,
             rest_density: ph.rest_density,
             sign: p.drift_momentum_sign,
         };
         let n = fluid.len();
-        let t = [zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n), zeros(arena, n)];
+        let t = [zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n)];
         dm::drift_momentum(&inp, d.reborrow(), t);
         for (a, d) in [(ap.x, &*d.x), (ap.y, &*d.y), (ap.z, &*d.z)] {
             a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
@@ -249,12 +257,13 @@ pub(super) fn transport<'a>(
         }
         return NextFractions { alpha: alpha_next, beta: beta_next };
     };
+    let scratch = &mut *cx.scratch;
     cx.tm.time(Pass::PhaseTransport, || {
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
-        let tr = Transport { p, arena, n, dt, u };
-        tr.run(pairs.ff, per_phase(arena, &fluid.alpha), &fluid.alpha_lo, drift.flux, alpha_next);
+        let tr = Transport { p, n, dt, u };
+        tr.run(scratch.fresh(), pairs.ff, &fluid.alpha, &fluid.alpha_lo, drift.flux, alpha_next);
         if let (true, Some(ffb), Some(g)) = (porous, pairs.ffb, drift.inner_flux) {
-            tr.run(ffb, per_phase(arena, &fluid.beta), &fluid.beta_lo, g, beta_next);
+            tr.run(scratch.fresh(), ffb, &fluid.beta, &fluid.beta_lo, g, beta_next);
         }
     });
     NextFractions { alpha: alpha_next, beta: beta_next }
@@ -263,7 +272,6 @@ pub(super) fn transport<'a>(
 /// The volume-fraction transport of pass 12 for one set of fractions.
 struct Transport<'a> {
     p: &'a Params,
-    arena: &'a Bump,
     n: usize,
     dt: f32,
     u: Vel<'a>,
@@ -271,9 +279,11 @@ struct Transport<'a> {
 
 impl Transport<'_> {
     /// Moves the fractions `frac` + `lo` (per phase) by the fluxes `flux`
-    /// over the pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`).
-    fn run(&self, ff: &PairLists, frac: &[&[f32]], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
-        let (arena, n, dt, np) = (self.arena, self.n, self.dt, frac.len());
+    /// over the pairs `ff` into `next` (phase k at `[k n, (k + 1) n)`);
+    /// its temporaries from `arena`.
+    fn run(&self, arena: &Bump, ff: &PairLists, frac: &[Vec<f32>], lo: &[Vec<f32>], flux: PhaseVel, next: &mut [f64]) {
+        let (n, dt, np) = (self.n, self.dt, frac.len());
+        let frac = per_phase(arena, frac);
         if self.p.conservative_transport {
             let scratch = TransportScratch {
                 limit: zeros(arena, np * n),

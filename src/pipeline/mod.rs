@@ -7,6 +7,7 @@ pub mod granular;
 mod integrate;
 mod mixture;
 mod neighbours;
+mod pass_scratch;
 mod phases;
 mod porous;
 mod prediction;
@@ -28,6 +29,7 @@ use crate::backend::Passes;
 use crate::scene::{Porous, Scene};
 use crate::store::{FluidStore, Scratch, SolidStore, WallStore};
 use bumpalo::Bump;
+use pass_scratch::PassScratch;
 use porosph_kernels::elasticity::Lame;
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::kernel::Kernel;
@@ -258,6 +260,8 @@ pub struct Simulation {
     /// The most bytes of the arena one step has used (its high-water mark:
     /// what it touches, of [`Bump::allocated_bytes`]).
     arena_used: usize,
+    /// The passes' own temporaries, one pass at a time.
+    scratch: PassScratch,
 }
 
 impl Simulation {
@@ -283,6 +287,7 @@ impl Simulation {
             ("solid rest rows", 4 * (w.solid_own.capacity() + w.solid_v0.capacity())),
             ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
             ("step arena", self.arena.allocated_bytes()),
+            ("pass scratch", self.scratch.bytes()),
         ]
     }
 
@@ -291,6 +296,12 @@ impl Simulation {
     /// capacity).
     pub fn arena_used(&self) -> usize {
         self.arena_used
+    }
+
+    /// The most bytes of the pass scratch that one pass has used so far (of
+    /// the "pass scratch" of [`Simulation::memory`]).
+    pub fn scratch_used(&self) -> usize {
+        self.scratch.used()
     }
 
     /// Bytes of memory held per fluid particle: [`Simulation::memory`]

@@ -63,6 +63,7 @@ pub(super) fn partition<'a>(
     density: &mut FluidDensity<'a>,
 ) -> Partition<'a> {
     let (p, arena) = (cx.p, cx.arena);
+    let s = cx.scratch.fresh();
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         let mask = arena.alloc_slice_fill_iter(
@@ -87,7 +88,7 @@ pub(super) fn partition<'a>(
         let (n, cell) = (fluid.len(), p.cell_volume());
         let fill = zeros(arena, fluid.alpha.len() * n);
         for (k, fill) in fill.chunks_mut(n.max(1)).enumerate() {
-            let absorbs = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
+            let absorbs = s.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
                 let i = i as usize;
                 let r = p.porous[solids.body[i] as usize].as_ref();
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
@@ -100,7 +101,7 @@ pub(super) fn partition<'a>(
         // and front wall (solid fill 0.8, walls the rest) kept its row,
         // compressed by both, and its pressure rose tenfold per step to
         // 2.7e9 Pa.
-        let walls_fill = zeros(arena, n);
+        let walls_fill = zeros(s, n);
         iisph::kernel_sums(&pairs.fb, &walls.rest_volume, walls_fill);
         for fill in fill.chunks_mut(n.max(1)) {
             for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
@@ -150,13 +151,14 @@ pub(super) fn solid_terms<'a>(
     mixture: bool,
 ) -> PoreTerms<'a> {
     let (p, arena) = (cx.p, cx.arena);
+    let scratch = &mut *cx.scratch;
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         if mixture {
-            let active = near_inner_fluid(fluid, &pairs.ff, arena);
+            let active = near_inner_fluid(fluid, &pairs.ff, scratch.fresh());
             w.ffb.copy_scaled_where(&pairs.ff, p.cell_volume(), active);
         }
-        pore_state(p, fluid, solids, w, pairs, arena, part)
+        pore_state(p, fluid, solids, w, pairs, (arena, scratch.fresh()), part)
     })
 }
 
@@ -214,14 +216,16 @@ pub(super) struct PoreTerms<'a> {
 }
 
 /// Passes 6, 7 and 9 (module doc). `n_f` and `mask` come from
-/// [`partition`]; `pairs.fs` must still hold plain kernel gradients.
+/// [`partition`]; `pairs.fs` must still hold plain kernel gradients. The
+/// terms go to `arena`, the fields they come from to `tmp` (pass
+/// scratch).
 fn pore_state<'a>(
     p: &Params,
     fluid: &FluidStore,
     solids: &mut SolidStore,
     w: &Workspace,
     pairs: &PairSet,
-    arena: &'a Bump,
+    (arena, tmp): (&'a Bump, &Bump),
     part: &Partition,
 ) -> PoreTerms<'a> {
     let (n_f, mask) = (part.n_f, part.mask);
@@ -229,18 +233,18 @@ fn pore_state<'a>(
     let perm = &w.solid_perm;
     let cell = p.cell_volume();
     let region = |k: usize| p.porous[solids.body[perm[k] as usize] as usize].as_ref();
-    let inv_n = arena.alloc_slice_fill_iter(n_f.iter().map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 }));
+    let inv_n = tmp.alloc_slice_fill_iter(n_f.iter().map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 }));
 
     // P-Eq. 15: phi_sk (sorted order), phase by phase.
-    let phi = zeros(arena, np * ns);
-    let beta_over_n = zeros(arena, n);
+    let phi = zeros(tmp, np * ns);
+    let beta_over_n = zeros(tmp, n);
     for (k, out) in phi.chunks_mut(ns.max(1)).enumerate().take(np) {
         beta_over_n.par_iter_mut().zip(fluid.beta[k].par_iter()).zip(inv_n.par_iter()).for_each(|((o, b), i)| {
             *o = b * i;
         });
         absorbed_volume(&pairs.sf, beta_over_n, mask, out);
     }
-    let phi: &[&[f32]] = arena.alloc_slice_fill_iter(phi.chunks(ns.max(1)).take(np));
+    let phi: &[&[f32]] = tmp.alloc_slice_fill_iter(phi.chunks(ns.max(1)).take(np));
 
     // The wet mass of the paper's Example 3: m_s = m_s0 + sum_k phi_sk rho_k V_s0.
     for (k, &i) in perm.iter().enumerate() {
@@ -253,11 +257,11 @@ fn pore_state<'a>(
     }
 
     // P-Eq. 9: p^pore = p_0 sum_k phi_sk - B tr(eps); V_s = m_s / rho_s (P §5).
-    let pore = zeros(arena, ns);
-    let vol = zeros(arena, ns);
+    let pore = zeros(tmp, ns);
+    let vol = zeros(tmp, ns);
     {
-        let mass_s = arena.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
-        let rho_s = zeros(arena, ns);
+        let mass_s = tmp.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
+        let rho_s = zeros(tmp, ns);
         iisph::kernel_sums(&pairs.ss, mass_s, rho_s);
         for k in 0..ns {
             let i = perm[k] as usize;
@@ -273,15 +277,15 @@ fn pore_state<'a>(
 
     // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
     // u_rk = q_k / e, u_betak = u_rk + v_s.
-    let VelMut { x: gx, y: gy, z: gz } = zeros3(arena, ns);
+    let VelMut { x: gx, y: gy, z: gz } = zeros3(tmp, ns);
     pore_gradient(&pairs.ss, vol, pore, VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz });
     // The drained boundary: the outer liquid of each absorbed phase stands
     // for a surface particle's missing neighbours at p_0k.
     for k in 0..np {
-        let p0k = arena.alloc_slice_fill_iter(
+        let p0k = tmp.alloc_slice_fill_iter(
             (0..ns).map(|s| region(s).and_then(|r| r.phases[k]).map_or(0.0, |ph| ph.outer_pore_pressure)),
         );
-        let absorbs = arena.alloc_slice_fill_iter(
+        let absorbs = tmp.alloc_slice_fill_iter(
             (0..ns).map(|s| (vol[s] > 0.0 && region(s).is_some_and(|r| r.phases[k].is_some())) as u32 as f32),
         );
         let g = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
@@ -289,10 +293,10 @@ fn pore_state<'a>(
     }
     let mut max_darcy = 0.0f32;
     let mut solid_phase = |k: usize| {
-        let VelMut { x: qx, y: qy, z: qz } = zeros3(arena, ns);
-        let VelMut { x: ux, y: uy, z: uz } = zeros3(arena, ns);
-        let p0k = zeros(arena, ns);
-        let cond = zeros(arena, ns);
+        let VelMut { x: qx, y: qy, z: qz } = zeros3(tmp, ns);
+        let VelMut { x: ux, y: uy, z: uz } = zeros3(tmp, ns);
+        let p0k = zeros(tmp, ns);
+        let cond = zeros(tmp, ns);
         for s in 0..ns {
             let i = perm[s] as usize;
             let Some(r) = region(s) else { continue };
@@ -311,11 +315,11 @@ fn pore_state<'a>(
         }
         (Vel { x: qx, y: qy, z: qz }, Vel { x: ux, y: uy, z: uz }, &*p0k, &*cond)
     };
-    let per_solid = arena.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
+    let per_solid = tmp.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
 
     // Pass 9 on the fluid.
     let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, n);
-    let psi = arena.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
+    let psi = tmp.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
     capillary_normal(&pairs.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
     let [ubx, uby, ubz] = flat(arena);

@@ -248,10 +248,13 @@ pub(super) fn solve<'a>(
     rows: PressureRows<'a>,
 ) -> Solved<'a> {
     let (p, dt, arena) = (cx.p, cx.dt, cx.arena);
+    let tmp = cx.scratch.fresh();
     let (n, ns) = (fluid.len(), solids.len());
     let VelMut { x: apx, y: apy, z: apz } = zeros3(arena, n);
-    let VelMut { x: asx, y: asy, z: asz } = zeros3(arena, ns);
-    let parts = arena.alloc_slice_fill_copy(nblocks(n), 0.0f64);
+    // The solids' accelerations in the rows' order (the bodies' own order
+    // in `accel_solid` is what the step keeps).
+    let VelMut { x: asx, y: asy, z: asz } = zeros3(tmp, ns);
+    let parts = tmp.alloc_slice_fill_copy(nblocks(n), 0.0f64);
     let rows_active = sum_f64(n, parts, |i| (rows.fluid.diag[i] != 0.0) as u32 as f64).max(1.0);
     let PressureRows { fluid: fluid_rows, walls: wall_rows, solids: solid_rows, p_active, p_solid, pairs: scaled } =
         rows;
@@ -303,7 +306,7 @@ pub(super) fn solve<'a>(
         model,
         solids,
         perm: &w.solid_perm,
-        force: arena.alloc_slice_fill_copy(ns, Vec3::ZERO),
+        force: tmp.alloc_slice_fill_copy(ns, Vec3::ZERO),
         accel: &mut *accel_solid,
         tolerance: p.elastic_tolerance,
         max_iterations: p.elastic_max_iterations,
@@ -320,7 +323,7 @@ pub(super) fn solve<'a>(
             response: &mut response,
         }),
     };
-    let report = cx.tm.time(Pass::PressureSolve, || backend.pressure_solve(&sys, x, arena));
+    let report = cx.tm.time(Pass::PressureSolve, || backend.pressure_solve(&sys, x, tmp));
     cx.tm.set_gpu(Pass::PressureSolve, report.gpu_ms.unwrap_or(0.0));
     let solid_stats = response.stats;
     Solved { ap: VelMut { x: apx, y: apy, z: apz }, p_solid, accel_solid, report, solid_stats, pairs: scaled }

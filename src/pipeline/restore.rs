@@ -71,6 +71,7 @@ impl Simulation {
             work,
             arena: Bump::new(),
             arena_used: 0,
+            scratch: Default::default(),
         })
     }
 }

@@ -326,6 +326,7 @@ impl Simulation {
             work,
             arena: Bump::new(),
             arena_used: 0,
+            scratch: Default::default(),
         };
         let v0 = sim.max_speed();
         let (dt, by) = sim.dt_rule(v0, sim.params.drift_speed_estimate());

@@ -5,6 +5,7 @@
 //! solids the porous ones.
 
 use super::mixture::MixturePairs;
+use super::pass_scratch::PassScratch;
 use super::solid::SolidModel;
 use super::timing::{Pass, PassTimes};
 use super::{integrate, mixture, neighbours, phases, porous, prediction, pressure, solid, volumes};
@@ -53,11 +54,12 @@ impl Simulation {
                 (self.solids.vx[i], self.solids.vy[i], self.solids.vz[i]) = (v[0], v[1], v[2]);
             }
         }
-        let Simulation { params, fluid, walls, solids, solid_model, backend, work, pairs, arena, .. } = self;
+        let Simulation { params, fluid, walls, solids, solid_model, backend, work, pairs, arena, scratch, .. } = self;
         let bodies = Bodies { store: solids, model: solid_model.as_mut() };
-        let cx = StepCtx { p: params, dt, arena, tm: PassTimes::default() };
+        let cx = StepCtx { p: params, dt, arena, scratch, tm: PassTimes::default() };
         let mut stats = step_passes(cx, fluid, walls, bodies, backend.as_mut(), work, pairs);
         self.arena_used = self.arena_used.max(arena.allocated_bytes() - arena.chunk_capacity());
+        scratch.note_used();
         arena.reset();
         if let Some(reason) = backend.take_error() {
             let nan = [f32::NAN; 3];
@@ -237,6 +239,8 @@ pub(super) struct StepCtx<'a> {
     pub dt: f32,
     /// Scratch of the step (reset after it): the stages' outputs live here.
     pub arena: &'a Bump,
+    /// Scratch of one pass (`PassScratch::fresh`): its temporaries.
+    pub scratch: &'a mut PassScratch,
     /// Milliseconds per pass.
     pub tm: PassTimes,
 }
