@@ -50,7 +50,8 @@
 //!
 //! Three gathers, each writing its own arrays (so the GPU twin,
 //! `shaders/drift.wgsl`, can use the same function names):
-//! 1. [`phase_velocity`], once per phase: v_k and w_k.
+//! 1. [`phase_velocity`], once per phase: v_k and w_k ([`phase_velocities`]
+//!    for all phases in one pass over the pairs, what the CPU runs).
 //! 2. [`mixture_velocity`]: s = sum_k c_k v_k and the volume-weighted mean
 //!    phase velocity m = sum_k alphahat_k v_k.
 //! 3. [`drift_velocity`], once per phase: u_mk = v_k - s (over v_k), and
@@ -154,6 +155,141 @@ pub fn phase_velocity(inp: &PhaseVelocityInput, alpha_k: &[f32], phase: PhaseCon
                 (wx[q], wy[q], wz[q]) = (out_w[0], out_w[1], out_w[2]);
             }
         });
+}
+
+/// [`phase_velocity`] for every phase in one pass over the pairs: each
+/// pair's j and gradient are read once for all phases instead of once a
+/// phase (the pairs are most of what the pass reads). `alpha[k]` and
+/// `phases[k]` are phase k's; `v` and `w` hold phase k at `[k n, (k + 1) n)`
+/// (n = `inp.alpha_f.len()`). Bit for bit [`phase_velocity`] phase by
+/// phase: the same sums in the same order (`kernels/tests/mixture.rs`).
+pub fn phase_velocities(inp: &PhaseVelocityInput, alpha: &[&[f32]], phases: &[PhaseConstants], v: VelMut, w: VelMut) {
+    let (n, np) = (inp.alpha_f.len(), alpha.len());
+    assert_eq!(phases.len(), np, "phase_velocities: {} phases' constants for {np} fractions", phases.len());
+    let VelMut { x: vx, y: vy, z: vz } = v;
+    let VelMut { x: wx, y: wy, z: wz } = w;
+    let out = [vx, vy, vz, wx, wy, wz].map(|o| {
+        assert_eq!(o.len(), np * n, "phase_velocities: {} outputs for {np} phases of {n} particles", o.len());
+        PhaseOut(o.as_mut_ptr())
+    });
+    let blocks = &inp.ff.used()[..n.div_ceil(BLOCK)];
+    blocks.par_iter().enumerate().for_each(|(b, blk)| {
+        for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
+            let q = i - b * BLOCK;
+            if inp.alpha_f[i] < MIN_ALPHA_F {
+                for k in 0..np {
+                    // SAFETY: i belongs to this block alone, k n + i < np n.
+                    out.iter().for_each(|o| unsafe { o.write(k * n + i, 0.0) });
+                }
+                continue;
+            }
+            for k0 in (0..np).step_by(GROUP) {
+                let (a, c) = (&alpha[k0..(k0 + GROUP).min(np)], &phases[k0..(k0 + GROUP).min(np)]);
+                let at = (i, k0, n);
+                match a.len() {
+                    1 => velocity_group::<1>(inp, blk, q, at, a, c, &out),
+                    2 => velocity_group::<2>(inp, blk, q, at, a, c, &out),
+                    3 => velocity_group::<3>(inp, blk, q, at, a, c, &out),
+                    _ => velocity_group::<GROUP>(inp, blk, q, at, a, c, &out),
+                }
+            }
+        }
+    });
+}
+
+/// Phases per pair loop of [`phase_velocities`]: with phase pressures six
+/// accumulators a phase stay in registers.
+const GROUP: usize = 4;
+
+/// Where the blocks of [`phase_velocities`] write: each particle's values
+/// at indices no other particle writes.
+#[derive(Clone, Copy)]
+struct PhaseOut(*mut f32);
+
+// SAFETY: the parallel loop writes each index from one thread only.
+unsafe impl Send for PhaseOut {}
+unsafe impl Sync for PhaseOut {}
+
+impl PhaseOut {
+    /// # Safety
+    /// `i` is within the slice the pointer came from, which outlives the
+    /// call, and no other thread reads or writes index `i` meanwhile.
+    unsafe fn write(&self, i: usize, v: f32) {
+        unsafe { *self.0.add(i) = v }
+    }
+}
+
+/// [`phase_velocities`] for the `G` phases `alpha` (constants `phases`),
+/// phase k0 + k of the `(i, k0, n)` of `at`: particle i, query q of `blk`.
+#[inline(always)]
+fn velocity_group<const G: usize>(
+    inp: &PhaseVelocityInput,
+    blk: &PairBlock,
+    q: usize,
+    (i, k0, n): (usize, usize, usize),
+    alpha: &[&[f32]],
+    phases: &[PhaseConstants],
+    out: &[PhaseOut; 6],
+) {
+    let r = blk.range(q);
+    let ai: [f32; G] = std::array::from_fn(|k| alpha[k][i]);
+    let (ga, gp) = match inp.p_per_fraction {
+        Some(pf) => gradients_group::<G, true>(blk, r, alpha, pf, ai, ai.map(|a| a * pf[i])),
+        None => gradients_group::<G, false>(blk, r, alpha, &[], ai, [0.0; G]),
+    };
+    let (av, ap) = (inp.a_visc, inp.a_p);
+    let a = [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i])];
+    let af = inp.alpha_f[i];
+    for k in 0..G {
+        let PhaseConstants { tau, sigma, density: rho } = phases[k];
+        let own = ai[k] >= MIN_PHASE_FRACTION * af;
+        let at = (k0 + k) * n + i;
+        for c in 0..3 {
+            let t = tau * (rho * a[c] - gp[k][c]);
+            let v = if own { t - sigma * ga[k][c] / ai[k] } else { t };
+            // SAFETY: particle i's index of phase k0 + k, written by this
+            // block alone (`phase_velocities`).
+            unsafe {
+                out[c].write(at, v);
+                out[3 + c].write(at, ai[k] * t - sigma * ga[k][c]);
+            }
+        }
+    }
+}
+
+/// [`gradients`] for `G` phases over one pass of the pairs.
+#[inline(always)]
+fn gradients_group<const G: usize, const PRESSURE: bool>(
+    blk: &PairBlock,
+    r: std::ops::Range<usize>,
+    alpha: &[&[f32]],
+    pf: &[f32],
+    ai: [f32; G],
+    pki: [f32; G],
+) -> ([[f32; 3]; G], [[f32; 3]; G]) {
+    let (vai, vpi) = (ai.map(F::splat), pki.map(F::splat));
+    let (mut ga, mut gp) = ([[F::ZERO; 3]; G], [[F::ZERO; 3]; G]);
+    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    let mut p = r.start;
+    while p < r.end {
+        let (x, y, z) = (load(gx, p), load(gy, p), load(gz, p));
+        let pj = if PRESSURE { gather(pf, j, p) } else { F::ZERO };
+        for k in 0..G {
+            let aj = gather(alpha[k], j, p);
+            let da = aj - vai[k];
+            ga[k][0] += da * x;
+            ga[k][1] += da * y;
+            ga[k][2] += da * z;
+            if PRESSURE {
+                let dp = aj * pj - vpi[k];
+                gp[k][0] += dp * x;
+                gp[k][1] += dp * y;
+                gp[k][2] += dp * z;
+            }
+        }
+        p += LANES;
+    }
+    (ga.map(|g| g.map(sum)), gp.map(|g| g.map(sum)))
 }
 
 /// grad alpha_k and (with `PRESSURE`) grad p_k of one particle in the

@@ -509,3 +509,68 @@ fn drift_momentum_tensor_form_is_the_sum_over_phases() {
     assert!(scale > 1.0, "the field gives |a^Dm| up to {scale}");
     assert!(worst <= 1e-5 * scale, "largest difference {worst} against |a^Dm| up to {scale}");
 }
+
+/// "The one-pass drift of all phases is the per-phase drift bit for bit":
+/// `drift::phase_velocities` (one pass over the pairs for every phase, in
+/// groups of four) against `drift::phase_velocity` phase by phase, for 1 to
+/// 6 phases (groups of 1, 2, 3, 4 and 4 + 1, 4 + 2), with the shared and
+/// the per-fraction pressure, alpha_f below the 0.01 guard on some
+/// particles and phases absent from some.
+#[test]
+fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
+    let mut rng = Lcg(11);
+    let lat = lattice(9, &mut rng);
+    let n = lat.x.len();
+    let field = |r: &mut Lcg, s: f32| -> Vec<f32> { (0..n).map(|_| s * (r.next() - 0.5)).collect() };
+    let (avx, avy, avz) = (field(&mut rng, 2.0), field(&mut rng, 2.0), field(&mut rng, 2.0));
+    let (apx, apy, apz) = (field(&mut rng, 20.0), field(&mut rng, 20.0), field(&mut rng, 20.0));
+    let p: Vec<f32> = (0..n).map(|_| 1000.0 * rng.next()).collect();
+    for np in 1..=6 {
+        // Outer fractions summing to alpha_f < 1 (inner fluid), some below the guard.
+        let alpha_f: Vec<f32> = (0..n).map(|_| if rng.next() < 0.1 { 0.005 } else { 0.5 + 0.5 * rng.next() }).collect();
+        let alpha: Vec<Vec<f32>> = fractions(n, np, &mut rng)
+            .into_iter()
+            .map(|a| a.iter().zip(&alpha_f).map(|(a, f)| a * f).collect())
+            .collect();
+        let phases: Vec<PhaseConstants> = (0..np)
+            .map(|k| PhaseConstants { density: 800.0 + 150.0 * k as f32, tau: 1e-5 * (1.0 + k as f32), sigma: 1e-3 })
+            .collect();
+        let mut pf = vec![0.0; n];
+        drift::pressure_per_fraction(&p, &alpha_f, &mut pf);
+        for fraction_pressure in [false, true] {
+            let inp = PhaseVelocityInput {
+                ff: &lat.ff,
+                alpha_f: &alpha_f,
+                p_per_fraction: if fraction_pressure { Some(&pf) } else { None },
+                a_visc: Vel { x: &avx, y: &avy, z: &avz },
+                a_p: Vel { x: &apx, y: &apy, z: &apz },
+            };
+            let mut one: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; np * n]);
+            {
+                let [vx, vy, vz, wx, wy, wz] = &mut one;
+                let a: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+                let v = VelMut { x: vx, y: vy, z: vz };
+                let w = VelMut { x: wx, y: wy, z: wz };
+                drift::phase_velocities(&inp, &a, &phases, v, w);
+            }
+            for k in 0..np {
+                let mut each: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; n]);
+                let [vx, vy, vz, wx, wy, wz] = &mut each;
+                let v = VelMut { x: vx, y: vy, z: vz };
+                let w = VelMut { x: wx, y: wy, z: wz };
+                drift::phase_velocity(&inp, &alpha[k], phases[k], v, w);
+                for (c, (o, e)) in one.iter().zip(&each).enumerate() {
+                    for i in 0..n {
+                        assert_eq!(
+                            o[k * n + i].to_bits(),
+                            e[i].to_bits(),
+                            "{np} phases, pressure per fraction {fraction_pressure}: phase {k}, output {c}, particle {i}: {} against {}",
+                            o[k * n + i],
+                            e[i]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

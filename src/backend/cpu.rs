@@ -71,15 +71,16 @@ impl Passes for Cpu {
             a_visc: inp.a_visc,
             a_p: inp.a_p,
         };
-        let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
-        let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
-        for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
-            let (mut v, mut w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
-            drift::phase_velocity(&pv, inp.alpha[k], inp.phases[k], v.reborrow(), w.reborrow());
-            // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
-            if let Some(pd) = &inp.porous {
-                let r = k * n..(k + 1) * n;
-                let e = pd.grad_pore.range(r);
+        let v = VelMut { x: &mut *ux, y: &mut *uy, z: &mut *uz };
+        let w = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
+        drift::phase_velocities(&pv, inp.alpha, inp.phases, v, w);
+        // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
+        if let Some(pd) = &inp.porous {
+            let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
+            let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
+            for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
+                let (v, w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
+                let e = pd.grad_pore.range(k * n..(k + 1) * n);
                 porosph_kernels::porous::add_phase_term(inp.alpha[k], inp.alpha_f, e, -pd.pore_drift, v, w);
             }
         }
@@ -96,12 +97,13 @@ impl Passes for Cpu {
                 a_visc: inp.a_visc,
                 a_p: inp.a_p,
             };
+            let inner_phases =
+                arena.alloc_slice_fill_iter(inp.phases.iter().map(|&c| PhaseConstants { sigma: pd.inner_sigma, ..c }));
+            let v = VelMut { x: &mut *bx, y: &mut *by, z: &mut *bz };
+            let w = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
+            drift::phase_velocities(&pv, pd.beta, inner_phases, v, w);
             for (k, &beta_k) in pd.beta.iter().enumerate() {
                 let r = k * n..(k + 1) * n;
-                let phase = PhaseConstants { sigma: pd.inner_sigma, ..inp.phases[k] };
-                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
-                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                drift::phase_velocity(&pv, beta_k, phase, v, w);
                 let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
                 let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
                 let e = pd.q.range(r);
