@@ -172,13 +172,21 @@ fn near_inner_fluid<'a>(fluid: &FluidStore, ff: &PairLists, arena: &'a Bump) -> 
     let n = fluid.len();
     let wet = arena.alloc_slice_fill_copy(n, false);
     wet.par_iter_mut().enumerate().for_each(|(i, w)| *w = fluid.beta.iter().any(|b| b[i] > 0.0));
-    let wet = &*wet;
+    // Marked from the wet particles' own pairs (few: the pool around a
+    // sponge is dry), which the symmetric lists allow: j is i's neighbour
+    // if i is j's (the same distance test; a padding lane repeats a true
+    // neighbour). Scanning every particle's pairs for a wet one took about
+    // 7 ms a step in the porous bench at 261k fluid particles (its porous
+    // pass 33.7 -> 27.6 ms, bench/RESULTS.md).
     let active = arena.alloc_slice_fill_copy(n, false);
-    active.par_chunks_mut(BLOCK).zip(ff.used().par_iter()).enumerate().for_each(|(b, (a, blk))| {
-        for (q, a) in a.iter_mut().enumerate() {
-            *a = wet[b * BLOCK + q] || blk.j[blk.range(q)].iter().any(|&j| wet[j as usize]);
+    let blocks = ff.used();
+    for i in (0..n).filter(|&i| wet[i]) {
+        active[i] = true;
+        let blk = &blocks[i / BLOCK];
+        for &j in &blk.j[blk.range(i % BLOCK)] {
+            active[j as usize] = true;
         }
-    });
+    }
     active
 }
 
