@@ -420,6 +420,19 @@ fn block_pairs<const W: bool>(
             merge_ranges(&mut ranges, found)
         };
         gather_candidates(cand, target, &ranges[..nr], bmin, bmax, h2);
+        if cand.j.is_empty() {
+            // No target near the run (most of a pool, for walls and
+            // solids): empty lists, and sums of nothing.
+            let len = blk.j.len() as u32;
+            for i in i..e {
+                blk.start.push(len);
+                if let Some((_, out)) = sums.as_mut() {
+                    out[i - rows.start] = 0.0;
+                }
+            }
+            i = e;
+            continue;
+        }
         for i in i..e {
             let first = blk.j.len();
             query_pairs(blk, cand, [query.x[i], query.y[i], query.z[i]], h2);
