@@ -208,8 +208,8 @@ pub(super) fn exchange(cx: &mut StepCtx, terms: &PoreTerms, n: usize, alpha_next
 pub(super) struct PoreTerms<'a> {
     /// sum_s psi_s V_s grad W_fs: a^cap = (sum_k beta_k) times this (P-Eq. 18).
     pub capillary: [&'a [f32]; 3],
-    /// u_betak,f (P-Eq. 16), m/s.
-    pub u_beta: [&'a [f32]; 3],
+    /// sum_k beta_k rho_k u_betak,f (u_betak,f of P-Eq. 16), kg/(m^2 s).
+    pub inner_flux: [&'a [f32]; 3],
     /// q_k,f (P-Eq. 17), m/s.
     pub q: Vel<'a>,
     /// grad p^pore_fk (P-Eq. 20), Pa/m.
@@ -330,7 +330,10 @@ fn pore_state<'a>(
     let psi = tmp.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
     capillary_normal(&pairs.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
-    let [ubx, uby, ubz] = flat(arena);
+    // u_betak,f of one phase at a time (pass scratch), summed into the
+    // inner mass flux sum_k beta_k rho_k u_betak,f, all that a^pore reads.
+    let [ubx, uby, ubz] = [zeros(tmp, n), zeros(tmp, n), zeros(tmp, n)];
+    let mut u_in = [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
     let [qfx, qfy, qfz] = flat(arena);
     let [gpx, gpy, gpz] = flat(arena);
     let gamma = zeros(arena, np * n);
@@ -347,12 +350,18 @@ fn pore_state<'a>(
         };
         let fl = FluidPhase { alpha: &fluid.alpha[k], inv_n };
         let out = FluidPhaseOut {
-            u_beta: VelMut { x: &mut ubx[r.clone()], y: &mut uby[r.clone()], z: &mut ubz[r.clone()] },
+            u_beta: VelMut { x: &mut *ubx, y: &mut *uby, z: &mut *ubz },
             q: VelMut { x: &mut qfx[r.clone()], y: &mut qfy[r.clone()], z: &mut qfz[r.clone()] },
             grad_pore: VelMut { x: &mut gpx[r.clone()], y: &mut gpy[r.clone()], z: &mut gpz[r.clone()] },
             gamma: &mut gamma[r],
         };
         fluid_phase_terms(&pairs.fs, solid, fl, out);
+        let rho = p.phase_density[k];
+        for (sum, u) in u_in.iter_mut().zip([&*ubx, &*uby, &*ubz]) {
+            sum.par_iter_mut().zip(u.par_iter()).zip(fluid.beta[k].par_iter()).for_each(|((s, u), b)| {
+                *s += b * rho * u;
+            });
+        }
     }
 
     let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);
@@ -365,7 +374,7 @@ fn pore_state<'a>(
     });
     PoreTerms {
         capillary: [cx, cy, cz],
-        u_beta: [ubx, uby, ubz],
+        inner_flux: u_in.map(|u| &*u),
         q: Vel { x: qfx, y: qfy, z: qfz },
         grad_pore: Vel { x: gpx, y: gpy, z: gpz },
         gamma,
@@ -393,7 +402,6 @@ pub(super) fn accelerations(
     dt: f32,
     ap: [&mut [f32]; 3],
 ) {
-    let n = fluid.len();
     let np = fluid.beta.len();
     let [apx, apy, apz] = ap;
     apx.par_chunks_mut(BLOCK).zip(apy.par_chunks_mut(BLOCK)).zip(apz.par_chunks_mut(BLOCK)).enumerate().for_each(
@@ -401,17 +409,12 @@ pub(super) fn accelerations(
             for q in 0..ax.len() {
                 let i = b * BLOCK + q;
                 let (mut bsum, mut bmass) = (0.0f32, 0.0f32);
-                let mut u_in = [0.0f32; 3];
                 for k in 0..np {
                     let bk = fluid.beta[k][i];
                     bsum += bk;
-                    let m = bk * p.phase_density[k];
-                    bmass += m;
-                    let j = k * n + i;
-                    u_in[0] += m * terms.u_beta[0][j];
-                    u_in[1] += m * terms.u_beta[1][j];
-                    u_in[2] += m * terms.u_beta[2][j];
+                    bmass += bk * p.phase_density[k];
                 }
+                let u_in = [terms.inner_flux[0][i], terms.inner_flux[1][i], terms.inner_flux[2][i]];
                 if bsum <= 0.0 {
                     continue;
                 }
