@@ -63,7 +63,7 @@ pub(super) fn partition<'a>(
     density: &mut FluidDensity<'a>,
 ) -> Partition<'a> {
     let (p, arena) = (cx.p, cx.arena);
-    let s = cx.scratch.fresh();
+    let tmp = cx.scratch.fresh();
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
         let mask = arena.alloc_slice_fill_iter(
@@ -88,7 +88,7 @@ pub(super) fn partition<'a>(
         let (n, cell) = (fluid.len(), p.cell_volume());
         let fill = zeros(arena, fluid.alpha.len() * n);
         for (k, fill) in fill.chunks_mut(n.max(1)).enumerate() {
-            let absorbs = s.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
+            let absorbs = tmp.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
                 let i = i as usize;
                 let r = p.porous[solids.body[i] as usize].as_ref();
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
@@ -101,7 +101,7 @@ pub(super) fn partition<'a>(
         // and front wall (solid fill 0.8, walls the rest) kept its row,
         // compressed by both, and its pressure rose tenfold per step to
         // 2.7e9 Pa.
-        let walls_fill = zeros(s, n);
+        let walls_fill = zeros(tmp, n);
         iisph::kernel_sums(&pairs.fb, &walls.rest_volume, walls_fill);
         for fill in fill.chunks_mut(n.max(1)) {
             for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
@@ -356,12 +356,11 @@ fn pore_state<'a>(
             gamma: &mut gamma[r],
         };
         fluid_phase_terms(&pairs.fs, solid, fl, out);
-        let rho = p.phase_density[k];
-        for (sum, u) in u_in.iter_mut().zip([&*ubx, &*uby, &*ubz]) {
-            sum.par_iter_mut().zip(u.par_iter()).zip(fluid.beta[k].par_iter()).for_each(|((s, u), b)| {
-                *s += b * rho * u;
-            });
-        }
+        let (rho, beta, [sx, sy, sz]) = (p.phase_density[k], &fluid.beta[k], &mut u_in);
+        (&mut **sx, &mut **sy, &mut **sz).into_par_iter().enumerate().for_each(|(i, (x, y, z))| {
+            let m = beta[i] * rho;
+            (*x, *y, *z) = (*x + m * ubx[i], *y + m * uby[i], *z + m * ubz[i]);
+        });
     }
 
     let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);
