@@ -160,6 +160,7 @@ impl RestState {
             .unzip();
         rest.w = w;
         rest.dx0 = dx0;
+        rest.retain_contributing_pairs();
         rest.volume = volume;
         // L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1, identity where
         // the sum is (nearly) singular: a particle with too few neighbours.
@@ -177,6 +178,38 @@ impl RestState {
         rest.correction = correction;
         rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w[p]).sum()).collect();
         rest
+    }
+
+    /// Drops the pairs at the support's edge to rounding: a lattice puts
+    /// neighbours at r = H exactly, and where the rounding of x_j0 - x_i0
+    /// makes r a few ulps short of H the pair passes `r < H` with a
+    /// gradient of order (1 - q)^2, about 1e-14 of the particle's largest
+    /// (Example 1's block at d = 2.4 mm: 580,600 of 4,455,936 rest pairs
+    /// below 1e-9 of their particle's largest |w|, none between 1e-9 and
+    /// 1e-2). Such a pair changes no sum it enters beyond f32 rounding,
+    /// yet costs the elastic product as much as any other; kept are the
+    /// pairs with |w_ij| above f32's epsilon times particle i's largest.
+    fn retain_contributing_pairs(&mut self) {
+        let n = self.start.len() - 1;
+        let mut to = 0;
+        for i in 0..n {
+            let r = self.range(i);
+            let largest = self.w[r.clone()].iter().map(|w| w.length()).fold(0.0f32, f32::max);
+            self.start[i] = to as u32;
+            for p in r {
+                if self.w[p].length() > f32::EPSILON * largest {
+                    (self.j[to], self.w[to], self.dx0[to]) = (self.j[p], self.w[p], self.dx0[p]);
+                    to += 1;
+                }
+            }
+        }
+        self.start[n] = to as u32;
+        self.j.truncate(to);
+        self.w.truncate(to);
+        self.dx0.truncate(to);
+        self.j.shrink_to_fit();
+        self.w.shrink_to_fit();
+        self.dx0.shrink_to_fit();
     }
 }
 
