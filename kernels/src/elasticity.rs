@@ -660,7 +660,14 @@ fn cg(
     let carried = carry.as_deref().filter(|c| c.valid && c.v.len() == n && c.v.par_iter().eq(v.par_iter()));
     if carried.is_none() {
         v.par_iter_mut().for_each(|v| *v *= scale);
-        sys.apply(v, prod, ap);
+        // (M A) 0 = 0: a start from rest (the bodies' first response of a
+        // step, whose accelerations start at 0) needs no product; the same
+        // bits as taking it (it would be +0 in every component).
+        if v.par_iter().any(|v| *v != Vec3::ZERO) {
+            sys.apply(v, prod, ap);
+        } else {
+            ap.par_iter_mut().for_each(|a| *a = Vec3::ZERO);
+        }
     }
     // z = P r with the Jacobi preconditioner P (1 without one).
     let z = |i: usize, r: Vec3| sys.jacobi.map_or(r, |c| c[i] * r);
