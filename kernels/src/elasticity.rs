@@ -45,8 +45,9 @@ pub struct RestState {
     n: usize,
     /// w_ij = V_j0 grad W_ij0 of each pair, 1/m.
     pub w: Vec<Vec3>,
-    /// x_j0 - x_i0 of each pair, m.
-    pub dx0: Vec<Vec3>,
+    /// Rest positions x_i0, m ([`RestState::dx0`] of a pair: one position
+    /// a particle instead of a difference a pair).
+    x0: Vec<Vec3>,
     /// Rest volume V_i0 = m_i / (m_i W(0) + sum_j m_j W_ij0), m^3.
     pub volume: Vec<f32>,
     /// Gradient correction L_i (PHYSICS.md §3.1).
@@ -71,6 +72,12 @@ impl RestState {
         &self.j
     }
 
+    /// x_j0 - x_i0 of pair p of particle i, m.
+    #[inline]
+    pub fn dx0(&self, i: usize, p: usize) -> Vec3 {
+        self.x0[self.j[p] as usize] - self.x0[i]
+    }
+
     /// The pair range of particle i.
     #[inline]
     pub fn range(&self, i: usize) -> std::ops::Range<usize> {
@@ -80,7 +87,7 @@ impl RestState {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
-            + 12 * (self.w.capacity() + self.dx0.capacity() + self.wsum.capacity())
+            + 12 * (self.w.capacity() + self.x0.capacity() + self.wsum.capacity())
             + 36 * self.correction.capacity()
     }
 
@@ -132,7 +139,7 @@ impl RestState {
             j,
             n,
             w: Vec::new(),
-            dx0: Vec::new(),
+            x0: x0.to_vec(),
             volume: vec![0.0; n],
             correction: vec![Mat3::IDENTITY; n],
             wsum: Vec::new(),
@@ -148,18 +155,17 @@ impl RestState {
                 mass[i] / (mass[i] * kernel.w0() + s)
             })
             .collect();
-        let (w, dx0): (Vec<Vec3>, Vec<Vec3>) = (0..rest.j.len())
+        let w: Vec<Vec3> = (0..rest.j.len())
             .into_par_iter()
             .map(|p| {
                 let i = rest.start.partition_point(|&s| s as usize <= p) - 1;
                 let jj = rest.j[p] as usize;
                 let xij = x0[i] - x0[jj];
                 let g = kernel.grad_over_r(xij.length()) * xij;
-                (volume[jj] * g, x0[jj] - x0[i])
+                volume[jj] * g
             })
-            .unzip();
+            .collect();
         rest.w = w;
-        rest.dx0 = dx0;
         rest.retain_contributing_pairs();
         rest.volume = volume;
         // L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1, identity where
@@ -167,7 +173,7 @@ impl RestState {
         let correction: Vec<Mat3> = (0..n)
             .into_par_iter()
             .map(|i| {
-                let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w[p], rest.dx0[p]));
+                let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w[p], rest.dx0(i, p)));
                 if m.determinant().abs() > 1e-9 {
                     m.inverse()
                 } else {
@@ -198,7 +204,7 @@ impl RestState {
             self.start[i] = to as u32;
             for p in r {
                 if self.w[p].length() > f32::EPSILON * largest {
-                    (self.j[to], self.w[to], self.dx0[to]) = (self.j[p], self.w[p], self.dx0[p]);
+                    (self.j[to], self.w[to]) = (self.j[p], self.w[p]);
                     to += 1;
                 }
             }
@@ -206,10 +212,8 @@ impl RestState {
         self.start[n] = to as u32;
         self.j.truncate(to);
         self.w.truncate(to);
-        self.dx0.truncate(to);
         self.j.shrink_to_fit();
         self.w.shrink_to_fit();
-        self.dx0.shrink_to_fit();
     }
 }
 
@@ -302,7 +306,7 @@ pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deforma
             let rl = rm * l;
             let mut a = Mat3::ZERO;
             for p in range {
-                a += outer(x[rest.j[p] as usize] - x[i] - rm * rest.dx0[p], rest.w[p]);
+                a += outer(x[rest.j[p] as usize] - x[i] - rm * rest.dx0(i, p), rest.w[p]);
             }
             let f = Mat3::IDENTITY + a * rl.transpose();
             *o = Deformation { rl, strain: sym(&f) - Mat3::IDENTITY };
@@ -842,7 +846,7 @@ mod tests {
         for i in 0..n {
             let mut c = Mat3::ZERO;
             for p in rest.range(i) {
-                c += outer(rest.dx0[p], rest.correction[i] * rest.w[p]);
+                c += outer(rest.dx0(i, p), rest.correction[i] * rest.w[p]);
             }
             assert!(c.abs_diff_eq(Mat3::IDENTITY, 1e-4), "particle {i}: {c:?}");
         }

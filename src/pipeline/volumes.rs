@@ -165,7 +165,7 @@ pub(super) fn rest_rows(p: &Params, solids: &SolidStore) -> (Vec<f32>, Vec<f32>)
     let cell = p.cell_volume();
     (0..solids.len())
         .map(|i| {
-            let n = cell * (kernel.w0() + rest.range(i).map(|k| kernel.w(rest.dx0[k].length())).sum::<f32>());
+            let n = cell * (kernel.w0() + rest.range(i).map(|k| kernel.w(rest.dx0(i, k).length())).sum::<f32>());
             (n.min(gamma), cell * (gamma / n).min(1.0))
         })
         .unzip()
