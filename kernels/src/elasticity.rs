@@ -54,6 +54,9 @@ pub struct RestState {
     pub correction: Vec<Mat3>,
     /// s_i = sum_j w_ij, 1/m: the own-stress term T_i s_i of the force.
     pub wsum: Vec<Vec3>,
+    /// sum_j |w_ij|^2, 1/m^2: the stiffness of [`System::inverse_diagonal`],
+    /// the same every step.
+    w2: Vec<f32>,
 }
 
 impl RestState {
@@ -88,6 +91,7 @@ impl RestState {
     pub fn bytes(&self) -> usize {
         4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
             + 12 * (self.w.capacity() + self.x0.capacity() + self.wsum.capacity())
+            + 4 * self.w2.capacity()
             + 36 * self.correction.capacity()
     }
 
@@ -143,6 +147,7 @@ impl RestState {
             volume: vec![0.0; n],
             correction: vec![Mat3::IDENTITY; n],
             wsum: Vec::new(),
+            w2: Vec::new(),
         };
         // V_i0 = m_i / (m_i W(0) + sum_j m_j W_ij0).
         let volume: Vec<f32> = (0..n)
@@ -183,6 +188,7 @@ impl RestState {
             .collect();
         rest.correction = correction;
         rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w[p]).sum()).collect();
+        rest.w2 = (0..n).into_par_iter().map(|i| rest.range(i).map(|p| rest.w[p].length_squared()).sum()).collect();
         rest
     }
 
@@ -370,9 +376,8 @@ impl System<'_> {
         let dt2 = self.dt * self.dt;
         out.resize(self.mass.len(), 0.0);
         out.par_iter_mut().enumerate().for_each(|(i, c)| {
-            let w2: f32 = self.rest.range(i).map(|p| self.rest.w[p].length_squared()).sum();
             let Lame { mu, lambda } = self.lame[i];
-            let k = self.rest.volume[i] * w2 * (4.0 * mu + lambda) / 3.0;
+            let k = self.rest.volume[i] * self.rest.w2[i] * (4.0 * mu + lambda) / 3.0;
             *c = 1.0 / (self.mass[i] + dt2 * k);
         });
     }
