@@ -13,6 +13,7 @@ use crate::backend::passes::{Passes, StepShape, WallInput};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use porosph_kernels::neighbors::{build_gradient_pairs, build_pairs, compute_keys, sort_permutation};
 use porosph_kernels::soa::Vel;
+use rayon::prelude::*;
 
 /// The fluid's rest volumes V0 (pass 1's) and the fluid part of the
 /// density sums, sum_j V0_j W_ij over the pairs FF, which the neighbour
@@ -114,7 +115,17 @@ fn solid_pairs(
     let support = p.kernel.support;
     w.solid_keys.resize(ns, 0);
     compute_keys(&solids.x, &solids.y, &solids.z, 1.0 / support, &mut w.solid_keys);
-    sort_permutation(&w.solid_keys, &mut w.solid_sort, &mut w.solid_perm);
+    // Solids move little: where the last step's order is still the sorted
+    // order of (key, store index), the sort would return it unchanged.
+    let keys = &w.solid_keys;
+    let sorted = w.solid_perm.len() == ns
+        && w.solid_perm.par_windows(2).all(|p| (keys[p[0] as usize], p[0]) < (keys[p[1] as usize], p[1]));
+    if sorted {
+        w.solid_sort.clear();
+        w.solid_sort.par_extend(w.solid_perm.par_iter().map(|&i| (keys[i as usize], i)));
+    } else {
+        sort_permutation(&w.solid_keys, &mut w.solid_sort, &mut w.solid_perm);
+    }
     w.solid_keys.clear();
     w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));
     w.solid_grid.build(&w.solid_keys, support);
