@@ -98,7 +98,7 @@ impl RestState {
     /// SS0, rest volumes and corrections (PHYSICS.md §3.1) of particles at
     /// rest positions `x0` with bodies `body` and masses `mass`. Pairs
     /// within a body closer than the support H, less those at H to rounding
-    /// ([`RestState::retain_contributing_pairs`]; the rest volumes sum over
+    /// (`retain_contributing_pairs` below; the rest volumes sum over
     /// all of them); a deterministic cell grid (neighbours sorted by index).
     pub fn new(x0: &[Vec3], body: &[u32], mass: &[f32], kernel: &Kernel) -> RestState {
         let n = x0.len();
