@@ -55,11 +55,12 @@ impl PairBlock {
         self.start[q] as usize..self.start[q + 1] as usize
     }
 
-    /// Drops the pairs whose gradient is exactly 0 (each query keeps the
-    /// others in their order; W, where the block stores it, goes with
-    /// them). For lists whose pairs are only ever summed one by one: the
-    /// ranges are no longer whole SIMD vectors.
-    pub fn retain_nonzero_gradients(&mut self) {
+    /// Multiplies the gradients of query q's pairs by `scale(q, j)` and
+    /// keeps the pairs whose scaled gradient is nonzero, in their order
+    /// (W, where the block stores it, goes with them); the ranges stay
+    /// contiguous. For lists whose pairs are only ever summed one by one:
+    /// the ranges are no longer whole SIMD vectors.
+    pub fn scale_retain_nonzero(&mut self, scale: impl Fn(usize, usize) -> f32) {
         let with_w = self.w.len() == self.j.len();
         let mut to = 0;
         let mut from = self.start.first().map_or(0, |&s| s as usize);
@@ -67,12 +68,14 @@ impl PairBlock {
             let end = self.start[q + 1] as usize;
             self.start[q] = to as u32;
             for k in from..end {
-                if self.gx[k] != 0.0 || self.gy[k] != 0.0 || self.gz[k] != 0.0 {
+                let s = scale(q, self.j[k] as usize);
+                let (x, y, z) = (self.gx[k] * s, self.gy[k] * s, self.gz[k] * s);
+                if x != 0.0 || y != 0.0 || z != 0.0 {
                     self.j[to] = self.j[k];
                     if with_w {
                         self.w[to] = self.w[k];
                     }
-                    (self.gx[to], self.gy[to], self.gz[to]) = (self.gx[k], self.gy[k], self.gz[k]);
+                    (self.gx[to], self.gy[to], self.gz[to]) = (x, y, z);
                     to += 1;
                 }
             }

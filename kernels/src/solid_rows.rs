@@ -169,6 +169,21 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
         .zip(nb.sf.used_mut().par_iter_mut().zip(nb.sb.used_mut().par_iter_mut()).zip(nb.ss.used_mut().par_iter_mut()))
         .enumerate()
         .for_each(|(b, ((src, dg), ((bf, bb), bs)))| {
+            // The SS pairs scaled by their harmonic pair volume, and those
+            // scaled to 0 (within one body, both fixed, or a particle
+            // without volume) dropped: they add nothing to the solve's sums
+            // but were visited in every sweep's force and Jacobi update;
+            // with one body, every SS pair (Example 1 at d = 4 mm: 1.06 M,
+            // 32 a solid particle).
+            bs.scale_retain_nonzero(|q, j| {
+                let i = b * BLOCK + q;
+                let (vi, vj, takes_part) = (rows.vol[i], rows.vol[j], solid_pair(body, fixed, i, j));
+                if takes_part && vi * vj > 0.0 {
+                    2.0 * vi * vj / (vi + vj)
+                } else {
+                    0.0
+                }
+            });
             for (q, (src, dg)) in src.iter_mut().zip(dg.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
                 let vi = rows.vol[i];
@@ -178,14 +193,6 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
                     scale_pairs(bb, q, 0.0, rows.vol_wall);
                 } else {
                     scale_pairs(bb, q, vi, rows.vol_wall);
-                }
-                for k in bs.range(q) {
-                    let j = bs.j[k] as usize;
-                    let (vj, takes_part) = (rows.vol[j], solid_pair(body, fixed, i, j));
-                    let hv = if takes_part && vi * vj > 0.0 { 2.0 * vi * vj / (vi + vj) } else { 0.0 };
-                    bs.gx[k] *= hv;
-                    bs.gy[k] *= hv;
-                    bs.gz[k] *= hv;
                 }
                 let ui = [rows.u.x[i], rows.u.y[i], rows.u.z[i]];
                 // Fluid pairs (SIMD).
@@ -226,9 +233,6 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
                 for k in bs.range(q) {
                     let j = bs.j[k] as usize;
                     let g = [bs.gx[k], bs.gy[k], bs.gz[k]];
-                    if g == [0.0; 3] {
-                        continue;
-                    }
                     let uj = [rows.u.x[j], rows.u.y[j], rows.u.z[j]];
                     div -= (ui[0] - uj[0]) * g[0] + (ui[1] - uj[1]) * g[1] + (ui[2] - uj[2]) * g[2];
                     let c = 0.5 * (vi + rows.vol[j]);
@@ -253,11 +257,6 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
                 *dg = -dt2 * (own + s2);
             }
         });
-    // The SS pairs scaled to 0 (within one body, both fixed, or a particle
-    // without volume) add nothing to the solve's sums but were visited in
-    // every sweep's force and Jacobi update: with one body, every SS pair
-    // (Example 1 at d = 4 mm: 1.06 M, 32 a solid particle).
-    nb.ss.used_mut().par_iter_mut().for_each(|b| b.retain_nonzero_gradients());
 }
 
 /// The solids' share of the wall rows (after `iisph::wall_setup`, which

@@ -323,15 +323,18 @@ fn updated_gradient_pair_sums_follow_changed_values() {
     }
 }
 
-/// `PairBlock::retain_nonzero_gradients` (the solid rows drop the SS pairs
-/// they scaled to 0): every query keeps exactly its pairs with a nonzero
-/// gradient, in their order, with their j, W and gradient bits, and the
-/// ranges stay contiguous; a query left without pairs gets an empty range.
+/// `PairBlock::scale_retain_nonzero` (the solid rows scale the SS pairs
+/// and drop those they scaled to 0): every query keeps exactly its pairs
+/// with a nonzero scaled gradient, in their order, with their j and W bits
+/// and the scaled gradient's bits, and the ranges stay contiguous; a query
+/// left without pairs gets an empty range.
 #[test]
 fn dropping_zero_gradients_keeps_the_rest_in_order() {
     use porosph_kernels::neighbors::PairBlock;
     // Four queries with 3, 0, 5 and 2 pairs; gradients zero where k % 3 == 1
-    // and in every component of query 3's pairs.
+    // and in every component of query 3's pairs; scaled by 0 where j % 4 ==
+    // 0, else by 2 (exact).
+    let scale = |_q: usize, j: usize| if j.is_multiple_of(4) { 0.0f32 } else { 2.0 };
     let counts = [3usize, 0, 5, 2];
     let mut b = PairBlock::default();
     b.start.push(0);
@@ -342,21 +345,22 @@ fn dropping_zero_gradients_keeps_the_rest_in_order() {
         for _ in 0..c {
             let zero = k % 3 == 1 || q == 3;
             let g = if zero { [0.0f32, -0.0, 0.0] } else { [0.5 + k as f32, -(k as f32), 0.0] };
+            let s = scale(q, 100 + k as usize);
             let w = 10.0 + k as f32;
             b.j.push(100 + k);
             b.w.push(w);
             b.gx.push(g[0]);
             b.gy.push(g[1]);
             b.gz.push(g[2]);
-            if !zero {
-                keep.push((100 + k, w.to_bits(), g.map(f32::to_bits)));
+            if !zero && s != 0.0 {
+                keep.push((100 + k, w.to_bits(), g.map(|g| (g * s).to_bits())));
             }
             k += 1;
         }
         b.start.push(b.j.len() as u32);
         want.push(keep);
     }
-    b.retain_nonzero_gradients();
+    b.scale_retain_nonzero(scale);
     assert_eq!(b.start.len(), counts.len() + 1);
     assert_eq!(b.start[0], 0);
     for (q, keep) in want.iter().enumerate() {
