@@ -52,6 +52,9 @@ pub struct RestState {
     pub volume: Vec<f32>,
     /// Gradient correction L_i (PHYSICS.md §3.1).
     pub correction: Vec<Mat3>,
+    /// sum_j (x_j0 - x_i0) (x) w_ij: the rest part of [`deform`]'s sum
+    /// (the transpose of L_i^-1 where L_i is not the identity's fallback).
+    xw: Vec<Mat3>,
     /// s_i = sum_j w_ij, 1/m: the own-stress term T_i s_i of the force.
     pub wsum: Vec<Vec3>,
     /// sum_j |w_ij|^2, 1/m^2: the stiffness of [`System::inverse_diagonal`],
@@ -92,7 +95,7 @@ impl RestState {
         4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
             + 12 * (self.w.capacity() + self.x0.capacity() + self.wsum.capacity())
             + 4 * self.w2.capacity()
-            + 36 * self.correction.capacity()
+            + 36 * (self.correction.capacity() + self.xw.capacity())
     }
 
     /// SS0, rest volumes and corrections (PHYSICS.md §3.1) of particles at
@@ -147,6 +150,7 @@ impl RestState {
             x0: x0.to_vec(),
             volume: vec![0.0; n],
             correction: vec![Mat3::IDENTITY; n],
+            xw: Vec::new(),
             wsum: Vec::new(),
             w2: Vec::new(),
         };
@@ -188,6 +192,10 @@ impl RestState {
             })
             .collect();
         rest.correction = correction;
+        rest.xw = (0..n)
+            .into_par_iter()
+            .map(|i| rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.dx0(i, p), rest.w[p])))
+            .collect();
         rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w[p]).sum()).collect();
         rest.w2 = (0..n).into_par_iter().map(|i| rest.range(i).map(|p| rest.w[p].length_squared()).sum()).collect();
         rest
@@ -298,9 +306,8 @@ pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deforma
     rot.par_chunks_mut(BLOCK).zip(out.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (rot, out))| {
         for (q, (r, o)) in rot.iter_mut().zip(out.iter_mut()).enumerate() {
             let i = b * BLOCK + q;
-            let range = rest.range(i);
             let mut s1 = Mat3::ZERO;
-            for p in range.clone() {
+            for p in rest.range(i) {
                 s1 += outer(x[rest.j[p] as usize] - x[i], rest.w[p]);
             }
             let l = rest.correction[i];
@@ -311,10 +318,9 @@ pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deforma
             *r = extract_rotation(&f_tilde, *r, ROTATION_ITERATIONS);
             let rm = Mat3::from_quat(*r);
             let rl = rm * l;
-            let mut a = Mat3::ZERO;
-            for p in range {
-                a += outer(x[rest.j[p] as usize] - x[i] - rm * rest.dx0(i, p), rest.w[p]);
-            }
+            // sum_j (x_ij - R X_ij) (x) w_ij = s1 - R sum_j X_ij (x) w_ij,
+            // the second sum kept at rest: one pass over the pairs, not two.
+            let a = s1 - rm * rest.xw[i];
             let f = Mat3::IDENTITY + a * rl.transpose();
             *o = Deformation { rl, strain: sym(&f) - Mat3::IDENTITY };
         }
