@@ -179,23 +179,18 @@ impl RestState {
         rest.retain_contributing_pairs();
         rest.volume = volume;
         // L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1, identity where
-        // the sum is (nearly) singular: a particle with too few neighbours.
-        let correction: Vec<Mat3> = (0..n)
+        // the sum is (nearly) singular: a particle with too few neighbours;
+        // the sum's transpose is `xw`.
+        let (correction, xw): (Vec<Mat3>, Vec<Mat3>) = (0..n)
             .into_par_iter()
             .map(|i| {
                 let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w[p], rest.dx0(i, p)));
-                if m.determinant().abs() > 1e-9 {
-                    m.inverse()
-                } else {
-                    Mat3::IDENTITY
-                }
+                let l = if m.determinant().abs() > 1e-9 { m.inverse() } else { Mat3::IDENTITY };
+                (l, m.transpose())
             })
-            .collect();
+            .unzip();
         rest.correction = correction;
-        rest.xw = (0..n)
-            .into_par_iter()
-            .map(|i| rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.dx0(i, p), rest.w[p])))
-            .collect();
+        rest.xw = xw;
         rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w[p]).sum()).collect();
         rest.w2 = (0..n).into_par_iter().map(|i| rest.range(i).map(|p| rest.w[p].length_squared()).sum()).collect();
         rest
