@@ -143,6 +143,20 @@ impl PairLists {
         });
     }
 
+    /// Makes `self` lists of `n` queries without pairs (the vectors keep
+    /// their capacity).
+    pub fn clear_to(&mut self, n: usize) {
+        let nb = n.div_ceil(BLOCK);
+        if self.blocks.len() < nb {
+            self.blocks.resize_with(nb, PairBlock::default);
+        }
+        self.n = n;
+        for (b, blk) in self.blocks[..nb].iter_mut().enumerate() {
+            blk.clear();
+            blk.start.resize(BLOCK.min(n - b * BLOCK) + 1, 0);
+        }
+    }
+
     /// Total number of pairs.
     pub fn pairs(&self) -> usize {
         self.used().iter().map(|b| b.len()).sum()

@@ -373,3 +373,29 @@ fn dropping_zero_gradients_keeps_the_rest_in_order() {
     let total: usize = want.iter().map(Vec::len).sum();
     assert_eq!((b.j.len(), b.w.len(), b.gx.len(), b.gy.len(), b.gz.len()), (total, total, total, total, total));
 }
+
+/// `clear_to` leaves lists of n queries, each without pairs, where a build
+/// had found some (the solid-solid lists of a scene that reads none), also
+/// when the lists shrink or grow between calls; the vectors keep their
+/// capacity. Reference: every range empty and `pairs()` = 0.
+#[test]
+fn cleared_lists_have_every_query_and_no_pair() {
+    let h = 0.05;
+    let kernel = Kernel::new(h);
+    let mut rng = Lcg(11);
+    let pts: Vec<[f32; 3]> = (0..1500).map(|_| [0.3 * rng.next(), 0.3 * rng.next(), 0.3 * rng.next()]).collect();
+    let (x, y, z, g) = sorted(&pts, h);
+    let p = Vel { x: &x, y: &y, z: &z };
+    let mut l = PairLists::default();
+    build_pairs(&mut l, p, p, &g, None, &kernel);
+    assert!(l.pairs() > 0);
+    let cap = l.blocks[0].j.capacity();
+    for n in [1500, 700, 1, 0, 2100] {
+        l.clear_to(n);
+        assert_eq!(l.n, n);
+        assert_eq!(l.pairs(), 0);
+        assert_eq!(pairs_of(&l).len(), n, "one (empty) range per query");
+        assert!(pairs_of(&l).iter().all(Vec::is_empty));
+    }
+    assert_eq!(l.blocks[0].j.capacity(), cap, "capacity kept");
+}

@@ -149,7 +149,11 @@ fn solid_pairs(
     // Most of a pool is far from every solid: its queries skip the lookup.
     build_pairs(&mut pairs.fs, fp, sp, &w.solid_grid, Some(&w.solid_near), &p.kernel);
     build_pairs(&mut pairs.sf, sp, fp, &w.fluid_grid, None, &p.kernel);
-    build_pairs(&mut pairs.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    if p.solid_pairs_read() {
+        build_pairs(&mut pairs.ss, sp, sp, &w.solid_grid, None, &p.kernel);
+    } else {
+        pairs.ss.clear_to(ns);
+    }
     let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
     build_pairs(&mut pairs.sb, sp, wp, &w.wall_grid, Some(&w.wall_near), &p.kernel);
 }

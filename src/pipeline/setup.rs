@@ -95,6 +95,15 @@ impl Params {
         self.porous.iter().any(Option::is_some)
     }
 
+    /// Whether a pass reads the solid-solid pairs: the porous terms (pore
+    /// pressure and its gradient among a solid's particles), the granular
+    /// stress, and the solid rows, which take only pairs of two bodies
+    /// (`solid_rows::solid_pair`). With one non-porous, non-granular body
+    /// nothing does, and the neighbour pass builds none.
+    pub fn solid_pairs_read(&self) -> bool {
+        self.porous() || self.solid_granular.iter().any(|&g| g) || self.bodies() > 1
+    }
+
     /// Number of elastic bodies (distinct `body` names).
     pub fn bodies(&self) -> usize {
         self.solid_group.iter().map(|&g| g as usize + 1).max().unwrap_or(0)
