@@ -6,7 +6,7 @@
 //! positions x0, rest volumes V_i0, the gradient correction L_i, the
 //! rotation R_i, RL_i = R_i L_i. Every pair stores w_ij = V_j0 grad W_ij0
 //! (grad W_ij0 = grad_i W(x_i0 - x_j0), pointing from i towards j,
-//! PHYSICS.md §0). With T_i = P_i RL_i, Peer's force
+//! PHYSICS.md §0), at 16 bits ([`RestState::quantize`]). With T_i = P_i RL_i, Peer's force
 //! f_i = sum_j V_i0 V_j0 (P_i RL_i grad W_ij0 - P_j RL_j grad W_ji0)
 //! becomes the gather f_i = V_i0 sum_j (T_i + T_j) w_ij.
 //!
@@ -43,8 +43,13 @@ pub struct RestState {
     j: Vec<u32>,
     /// The number of particles the pairs were built for.
     n: usize,
-    /// w_ij = V_j0 grad W_ij0 of each pair, 1/m.
-    pub w: Vec<Vec3>,
+    /// w_ij = V_j0 grad W_ij0 of each pair, 1/m, at 16 bits
+    /// ([`RestState::quantize`]): three i16 a pair, multiples of
+    /// `w_unit[i]`, and four zeros after the last pair (the product loads
+    /// 8 bytes a pair).
+    wq: Vec<i16>,
+    /// The unit of particle i's w_ij: U / V_i0 ([`RestState::quantize`]).
+    w_unit: Vec<f32>,
     /// Rest positions x_i0, m ([`RestState::dx0`] of a pair: one position
     /// a particle instead of a difference a pair).
     x0: Vec<Vec3>,
@@ -78,6 +83,21 @@ impl RestState {
         &self.j
     }
 
+    /// w_ij of pair p of particle i, 1/m (its 16-bit form: every sum over
+    /// the pairs, the corrections and sums at rest included, uses these
+    /// values).
+    #[inline]
+    pub fn w(&self, i: usize, p: usize) -> Vec3 {
+        self.w_steps(p) * self.w_unit[i]
+    }
+
+    /// w_ij of pair p in units of its particle's `w_unit` (exact integers).
+    #[inline(always)]
+    fn w_steps(&self, p: usize) -> Vec3 {
+        let q = &self.wq[3 * p..3 * p + 3];
+        Vec3::new(f32::from(q[0]), f32::from(q[1]), f32::from(q[2]))
+    }
+
     /// x_j0 - x_i0 of pair p of particle i, m.
     #[inline]
     pub fn dx0(&self, i: usize, p: usize) -> Vec3 {
@@ -93,8 +113,9 @@ impl RestState {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
-            + 12 * (self.w.capacity() + self.x0.capacity() + self.wsum.capacity())
-            + 4 * self.w2.capacity()
+            + 2 * self.wq.capacity()
+            + 12 * (self.x0.capacity() + self.wsum.capacity())
+            + 4 * (self.w2.capacity() + self.w_unit.capacity())
             + 36 * (self.correction.capacity() + self.xw.capacity())
     }
 
@@ -146,7 +167,8 @@ impl RestState {
             start,
             j,
             n,
-            w: Vec::new(),
+            wq: Vec::new(),
+            w_unit: Vec::new(),
             x0: x0.to_vec(),
             volume: vec![0.0; n],
             correction: vec![Mat3::IDENTITY; n],
@@ -165,18 +187,18 @@ impl RestState {
                 mass[i] / (mass[i] * kernel.w0() + s)
             })
             .collect();
-        let w: Vec<Vec3> = (0..rest.j.len())
+        // grad W_ij0 of each pair (w_ij = V_j0 grad W_ij0).
+        let g: Vec<Vec3> = (0..rest.j.len())
             .into_par_iter()
             .map(|p| {
                 let i = rest.start.partition_point(|&s| s as usize <= p) - 1;
                 let jj = rest.j[p] as usize;
                 let xij = x0[i] - x0[jj];
-                let g = kernel.grad_over_r(xij.length()) * xij;
-                volume[jj] * g
+                kernel.grad_over_r(xij.length()) * xij
             })
             .collect();
-        rest.w = w;
-        rest.retain_contributing_pairs();
+        let g = rest.retain_contributing_pairs(g, &volume);
+        rest.quantize(&g, &volume);
         rest.volume = volume;
         // L_i = (sum_j V_j0 grad W_ij0 (x) (x_j0 - x_i0))^-1, identity where
         // the sum is (nearly) singular: a particle with too few neighbours;
@@ -184,16 +206,54 @@ impl RestState {
         let (correction, xw): (Vec<Mat3>, Vec<Mat3>) = (0..n)
             .into_par_iter()
             .map(|i| {
-                let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w[p], rest.dx0(i, p)));
+                let m = rest.range(i).fold(Mat3::ZERO, |m, p| m + outer(rest.w(i, p), rest.dx0(i, p)));
                 let l = if m.determinant().abs() > 1e-9 { m.inverse() } else { Mat3::IDENTITY };
                 (l, m.transpose())
             })
             .unzip();
         rest.correction = correction;
         rest.xw = xw;
-        rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w[p]).sum()).collect();
-        rest.w2 = (0..n).into_par_iter().map(|i| rest.range(i).map(|p| rest.w[p].length_squared()).sum()).collect();
+        rest.wsum = (0..n).map(|i| rest.range(i).map(|p| rest.w(i, p)).sum()).collect();
+        rest.w2 = (0..n).into_par_iter().map(|i| rest.range(i).map(|p| rest.w(i, p).length_squared()).sum()).collect();
         rest
+    }
+
+    /// Stores `w` (one per pair) at 16 bits. What is rounded is the pair's
+    /// term of the force, V_i0 w_ij = V_i0 V_j0 grad W_ij0, which is
+    /// antisymmetric (the product V_i0 V_j0 is the same both ways, grad
+    /// W_ji0 = -grad W_ij0 exactly): q_ij = V_i0 w_ij / U rounded to the
+    /// nearest integer (half away from zero), with one unit U = max |V_i0
+    /// w_ij component| / 32767 for all pairs, so q_ji = -q_ij exactly and
+    /// the elastic forces f_i = V_i0 sum_j (T_i + T_j) w_ij stay pairwise
+    /// opposite, as with f32 (a unit per particle broke that at 1e-5: the
+    /// cantilever's sum of forces went from 3e-8 to 1.4e-6 of sum |f|).
+    /// Then w_ij = q_ij U / V_i0 (`w_unit`). A component's error is at
+    /// most U / 2, 1.5e-5 of the largest term; a lattice's opposite
+    /// neighbours of equal volume stay exactly opposite, so sum_j w_ij of
+    /// its interior is 0 to the rounding of the sum, as before. The
+    /// product reads 6 bytes of w a pair instead of 12 (bench/RESULTS.md).
+    fn quantize(&mut self, g: &[Vec3], volume: &[f32]) {
+        let n = self.start.len() - 1;
+        // V_i0 V_j0 grad W_ij0: the product of the volumes is the same
+        // both ways, and grad W_ji0 = -grad W_ij0 bit for bit.
+        let term = |i: usize, p: usize| (volume[i] * volume[self.j[p] as usize]) * g[p];
+        let largest = (0..n)
+            .into_par_iter()
+            .map(|i| self.range(i).map(|p| term(i, p).abs().max_element()).fold(0.0f32, f32::max))
+            .reduce(|| 0.0, f32::max);
+        let unit = if largest > 0.0 { largest / 32767.0 } else { 1.0 };
+        self.w_unit = volume.iter().map(|&v| if v > 0.0 { unit / v } else { 0.0 }).collect();
+        let inv = 1.0 / unit;
+        let mut wq = Vec::with_capacity(3 * g.len() + 4);
+        for i in 0..n {
+            for p in self.range(i) {
+                let s = term(i, p) * inv;
+                // Within +-32767 (the largest is 32767 to rounding).
+                wq.extend([s.x, s.y, s.z].map(|c| c.round().clamp(-32767.0, 32767.0) as i16));
+            }
+        }
+        wq.extend([0; 4]);
+        self.wq = wq;
     }
 
     /// Drops the pairs at the support's edge to rounding: a lattice puts
@@ -205,25 +265,28 @@ impl RestState {
     /// 1e-2). Such a pair changes no sum it enters beyond f32 rounding,
     /// yet costs the elastic product as much as any other; kept are the
     /// pairs with |w_ij| above f32's epsilon times particle i's largest.
-    fn retain_contributing_pairs(&mut self) {
+    /// Returns the gradients of the pairs kept (`g`: grad W_ij0 of every
+    /// pair before; `volume`: V_j0, with which w_ij = V_j0 grad W_ij0).
+    fn retain_contributing_pairs(&mut self, mut g: Vec<Vec3>, volume: &[f32]) -> Vec<Vec3> {
         let n = self.start.len() - 1;
+        let w = |j: &[u32], g: &[Vec3], p: usize| volume[j[p] as usize] * g[p];
         let mut to = 0;
         for i in 0..n {
             let r = self.range(i);
-            let largest = self.w[r.clone()].iter().map(|w| w.length()).fold(0.0f32, f32::max);
+            let largest = r.clone().map(|p| w(&self.j, &g, p).length()).fold(0.0f32, f32::max);
             self.start[i] = to as u32;
             for p in r {
-                if self.w[p].length() > f32::EPSILON * largest {
-                    (self.j[to], self.w[to]) = (self.j[p], self.w[p]);
+                if w(&self.j, &g, p).length() > f32::EPSILON * largest {
+                    (self.j[to], g[to]) = (self.j[p], g[p]);
                     to += 1;
                 }
             }
         }
         self.start[n] = to as u32;
         self.j.truncate(to);
-        self.w.truncate(to);
+        g.truncate(to);
         self.j.shrink_to_fit();
-        self.w.shrink_to_fit();
+        g
     }
 }
 
@@ -310,8 +373,9 @@ pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deforma
             let i = b * BLOCK + q;
             let mut s1 = Mat3::ZERO;
             for p in rest.range(i) {
-                s1 += outer(x[rest.j[p] as usize] - x[i], rest.w[p]);
+                s1 += outer(x[rest.j[p] as usize] - x[i], rest.w_steps(p));
             }
+            let s1 = s1 * rest.w_unit[i];
             let l = rest.correction[i];
             let f_tilde = s1 * l.transpose();
             // Warm-started from the last step's rotation, this converges
@@ -348,9 +412,9 @@ pub fn forces(rest: &RestState, t: &[Mat3], f: &mut [Vec3]) {
         let ti = t[i];
         let mut acc = Vec3::ZERO;
         for p in rest.range(i) {
-            acc += (ti + t[rest.j[p] as usize]) * rest.w[p];
+            acc += (ti + t[rest.j[p] as usize]) * rest.w_steps(p);
         }
-        *f = rest.volume[i] * acc;
+        *f = (rest.volume[i] * rest.w_unit[i]) * acc;
     });
 }
 
@@ -397,7 +461,8 @@ impl System<'_> {
     /// This product is most of an elastic body's cost: the CG of the
     /// prediction and the bodies' response in every Jacobi sweep call it.
     /// Its two gathers over the rest pairs run on glam's 16-byte SIMD types
-    /// (`Vec3A`, `Mat3A`: one SSE operation a column) with fused
+    /// (`Vec3A`, `Mat3A`: one SSE operation a column; w_ij read at 16 bits
+    /// and its unit applied once a particle) with fused
     /// multiply-adds into two sets of accumulators ([`rest_sum`]); the
     /// force's own-stress term is T^_i s_i with s_i = sum_j w_ij kept at
     /// rest, so the second gather reads T^_j only. It is the scalar
@@ -469,24 +534,42 @@ fn rest_sum<S>(rest: &RestState, i: usize, src: &[S], x: impl Fn(&S) -> [Vec3A; 
     // SAFETY: j < rest.n <= src.len() for every j of `rest.j` (above).
     let at = |j: u32| x(unsafe { src.get_unchecked(j as usize) });
     let r = rest.range(i);
-    let (js, ws) = (&rest.j[r.clone()], &rest.w[r]);
-    let add = |c: &mut [Vec3A], x: [Vec3A; 3], w: Vec3| {
+    let js = &rest.j[r.clone()];
+    // Pair k's w in units of w_unit[i]; 8 bytes a pair from 3k (the last
+    // pair's read ends in the four zeros after the pairs).
+    let wq = &rest.wq[3 * r.start..3 * r.end + 4];
+    let w_at = |k: usize| -> Vec3A {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+        {
+            use std::arch::x86_64::{__m128i, _mm_cvtepi16_epi32, _mm_cvtepi32_ps, _mm_loadl_epi64};
+            let q = &wq[3 * k..3 * k + 4];
+            // SAFETY: the load reads the 4 i16 (8 bytes) of `q`.
+            Vec3A::from(unsafe { _mm_cvtepi32_ps(_mm_cvtepi16_epi32(_mm_loadl_epi64(q.as_ptr() as *const __m128i))) })
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
+        {
+            Vec3A::new(f32::from(wq[3 * k]), f32::from(wq[3 * k + 1]), f32::from(wq[3 * k + 2]))
+        }
+    };
+    let add = |c: &mut [Vec3A], x: [Vec3A; 3], w: Vec3A| {
         c[0] = madd(x[0], Vec3A::splat(w.x), c[0]);
         c[1] = madd(x[1], Vec3A::splat(w.y), c[1]);
         c[2] = madd(x[2], Vec3A::splat(w.z), c[2]);
     };
     let mut c = [Vec3A::ZERO; 6];
-    let (jc, wc) = (js.chunks_exact(2), ws.chunks_exact(2));
-    let (jr, wr) = (jc.remainder(), wc.remainder());
-    for (j2, w2) in jc.zip(wc) {
+    let m = js.len();
+    let mut k = 0;
+    while k + 2 <= m {
         let (a, b) = c.split_at_mut(3);
-        add(a, at(j2[0]), w2[0]);
-        add(b, at(j2[1]), w2[1]);
+        add(a, at(js[k]), w_at(k));
+        add(b, at(js[k + 1]), w_at(k + 1));
+        k += 2;
     }
-    if let (Some(&j), Some(&w)) = (jr.first(), wr.first()) {
-        add(&mut c[..3], at(j), w);
+    if k < m {
+        add(&mut c[..3], at(js[k]), w_at(k));
     }
-    [c[0] + c[3], c[1] + c[4], c[2] + c[5]]
+    let u = Vec3A::splat(rest.w_unit[i]);
+    [(c[0] + c[3]) * u, (c[1] + c[4]) * u, (c[2] + c[5]) * u]
 }
 
 /// a b + c, one fused multiply-add a lane where the CPU has FMA (the
@@ -860,9 +943,51 @@ mod tests {
         for i in 0..n {
             let mut c = Mat3::ZERO;
             for p in rest.range(i) {
-                c += outer(rest.dx0(i, p), rest.correction[i] * rest.w[p]);
+                c += outer(rest.dx0(i, p), rest.correction[i] * rest.w(i, p));
             }
             assert!(c.abs_diff_eq(Mat3::IDENTITY, 1e-4), "particle {i}: {c:?}");
+        }
+    }
+
+    /// The 16-bit w_ij against the f32 value V_j0 grad W_ij0 computed here
+    /// from the rest positions (reference), on a jittered block (uneven
+    /// volumes and gradients): every component within half the unit U / V_i0
+    /// (plus f32 rounding), the force's pair terms V_i0 w_ij exactly
+    /// opposite to V_j0 w_ji (as i16 integers), and at the centre of a
+    /// lattice block (its neighbours' neighbourhoods full) the integers of
+    /// its w_ij summing to exactly 0.
+    #[test]
+    fn sixteen_bit_w_is_within_half_a_unit_and_pairwise_opposite() {
+        let d = 0.01f32;
+        let kernel = Kernel::new(2.0 * d);
+        let lattice = block([7, 7, 7], d);
+        let jitter =
+            |i: usize| 0.05 * d * Vec3::new((i as f32 * 0.7).sin(), (i as f32 * 1.3).cos(), (i as f32 * 2.1).sin());
+        let x0: Vec<Vec3> = lattice.iter().enumerate().map(|(i, &p)| p + jitter(i)).collect();
+        let n = x0.len();
+        let rest = RestState::new(&x0, &vec![0; n], &vec![1000.0 * d * d * d; n], &kernel);
+        let mut worst = 0.0f32;
+        for i in 0..n {
+            for p in rest.range(i) {
+                let j = rest.j[p] as usize;
+                let xij = x0[i] - x0[j];
+                let exact = rest.volume[j] * (kernel.grad_over_r(xij.length()) * xij);
+                let err = (rest.w(i, p) - exact).abs().max_element() / rest.w_unit[i];
+                worst = worst.max(err);
+                let back = rest.range(j).find(|&m| rest.j[m] as usize == i).expect("symmetric rest pairs");
+                for c in 0..3 {
+                    assert_eq!(rest.wq[3 * p + c], -rest.wq[3 * back + c], "pair ({i}, {j}) component {c}");
+                }
+            }
+        }
+        assert!(worst <= 0.5 + 1e-3, "largest error {worst} units");
+        let lattice = block([9, 9, 9], d);
+        let n = lattice.len();
+        let rest = RestState::new(&lattice, &vec![0; n], &vec![1000.0 * d * d * d; n], &kernel);
+        let centre = (0..n).find(|&i| lattice[i].abs_diff_eq(Vec3::splat(4.0 * d), 1e-6)).expect("a centre");
+        for c in 0..3 {
+            let total: i32 = rest.range(centre).map(|p| i32::from(rest.wq[3 * p + c])).sum();
+            assert_eq!(total, 0, "component {c}");
         }
     }
 
@@ -1096,7 +1221,7 @@ mod tests {
             .map(|i| {
                 let mut g = Mat3::ZERO;
                 for p in rest.range(i) {
-                    g += outer(v[rest.j[p] as usize] - v[i], rest.w[p]);
+                    g += outer(v[rest.j[p] as usize] - v[i], rest.w(i, p));
                 }
                 let rl = def[i].rl;
                 let eps = sym(&(g * rl.transpose())) * sys.dt;
@@ -1110,7 +1235,7 @@ mod tests {
                 }
                 let mut acc = Vec3::ZERO;
                 for p in rest.range(i) {
-                    acc += (t_ref[i] + t_ref[rest.j[p] as usize]) * rest.w[p];
+                    acc += (t_ref[i] + t_ref[rest.j[p] as usize]) * rest.w(i, p);
                 }
                 mass[i] * v[i] - sys.dt * rest.volume[i] * acc
             })
