@@ -44,12 +44,12 @@ pub struct RestState {
     /// The number of particles the pairs were built for.
     n: usize,
     /// w_ij = V_j0 grad W_ij0 of each pair, 1/m, at 16 bits
-    /// ([`RestState::quantize`]): three i16 a pair, multiples of
-    /// `w_unit[i]`, and four zeros after the last pair (the product loads
+    /// ([`RestState::quantize`]): three i16 a pair, V_i0 w_ij in multiples
+    /// of `w_scale`, and four zeros after the last pair (the product loads
     /// 8 bytes a pair).
     wq: Vec<i16>,
-    /// The unit of particle i's w_ij: U / V_i0 ([`RestState::quantize`]).
-    w_unit: Vec<f32>,
+    /// The unit U of V_i0 w_ij, one for all pairs: w_ij = q_ij U / V_i0.
+    w_scale: f32,
     /// Rest positions x_i0, m ([`RestState::dx0`] of a pair: one position
     /// a particle instead of a difference a pair).
     x0: Vec<Vec3>,
@@ -88,10 +88,16 @@ impl RestState {
     /// values).
     #[inline]
     pub fn w(&self, i: usize, p: usize) -> Vec3 {
-        self.w_steps(p) * self.w_unit[i]
+        self.w_steps(p) * self.w_unit(i)
     }
 
-    /// w_ij of pair p in units of its particle's `w_unit` (exact integers).
+    /// The unit of particle i's w_ij, U / V_i0.
+    #[inline(always)]
+    fn w_unit(&self, i: usize) -> f32 {
+        self.w_scale / self.volume[i]
+    }
+
+    /// V_i0 w_ij of pair p in units of `w_scale` (exact integers).
     #[inline(always)]
     fn w_steps(&self, p: usize) -> Vec3 {
         let q = &self.wq[3 * p..3 * p + 3];
@@ -115,7 +121,7 @@ impl RestState {
         4 * (self.start.capacity() + self.j.capacity() + self.volume.capacity())
             + 2 * self.wq.capacity()
             + 12 * (self.x0.capacity() + self.wsum.capacity())
-            + 4 * (self.w2.capacity() + self.w_unit.capacity())
+            + 4 * self.w2.capacity()
             + 36 * (self.correction.capacity() + self.xw.capacity())
     }
 
@@ -168,7 +174,7 @@ impl RestState {
             j,
             n,
             wq: Vec::new(),
-            w_unit: Vec::new(),
+            w_scale: 1.0,
             x0: x0.to_vec(),
             volume: vec![0.0; n],
             correction: vec![Mat3::IDENTITY; n],
@@ -227,7 +233,7 @@ impl RestState {
     /// the elastic forces f_i = V_i0 sum_j (T_i + T_j) w_ij stay pairwise
     /// opposite, as with f32 (a unit per particle broke that at 1e-5: the
     /// cantilever's sum of forces went from 3e-8 to 1.4e-6 of sum |f|).
-    /// Then w_ij = q_ij U / V_i0 (`w_unit`). A component's error is at
+    /// Then w_ij = q_ij U / V_i0 (`w_scale` is U). A component's error is at
     /// most U / 2, 1.5e-5 of the largest term; a lattice's opposite
     /// neighbours of equal volume stay exactly opposite, so sum_j w_ij of
     /// its interior is 0 to the rounding of the sum, as before. The
@@ -242,7 +248,7 @@ impl RestState {
             .map(|i| self.range(i).map(|p| term(i, p).abs().max_element()).fold(0.0f32, f32::max))
             .reduce(|| 0.0, f32::max);
         let unit = if largest > 0.0 { largest / 32767.0 } else { 1.0 };
-        self.w_unit = volume.iter().map(|&v| if v > 0.0 { unit / v } else { 0.0 }).collect();
+        self.w_scale = unit;
         let inv = 1.0 / unit;
         let mut wq = Vec::with_capacity(3 * g.len() + 4);
         for i in 0..n {
@@ -375,7 +381,7 @@ pub fn deform(rest: &RestState, x: &[Vec3], rot: &mut [Quat], out: &mut [Deforma
             for p in rest.range(i) {
                 s1 += outer(x[rest.j[p] as usize] - x[i], rest.w_steps(p));
             }
-            let s1 = s1 * rest.w_unit[i];
+            let s1 = s1 * rest.w_unit(i);
             let l = rest.correction[i];
             let f_tilde = s1 * l.transpose();
             // Warm-started from the last step's rotation, this converges
@@ -414,7 +420,8 @@ pub fn forces(rest: &RestState, t: &[Mat3], f: &mut [Vec3]) {
         for p in rest.range(i) {
             acc += (ti + t[rest.j[p] as usize]) * rest.w_steps(p);
         }
-        *f = (rest.volume[i] * rest.w_unit[i]) * acc;
+        // V_i0 w_ij = q_ij U: the pair terms exactly opposite but for the sum.
+        *f = rest.w_scale * acc;
     });
 }
 
@@ -535,7 +542,7 @@ fn rest_sum<S>(rest: &RestState, i: usize, src: &[S], x: impl Fn(&S) -> [Vec3A; 
     let at = |j: u32| x(unsafe { src.get_unchecked(j as usize) });
     let r = rest.range(i);
     let js = &rest.j[r.clone()];
-    // Pair k's w in units of w_unit[i]; 8 bytes a pair from 3k (the last
+    // Pair k's w in units of w_unit(i); 8 bytes a pair from 3k (the last
     // pair's read ends in the four zeros after the pairs).
     let wq = &rest.wq[3 * r.start..3 * r.end + 4];
     let w_at = |k: usize| -> Vec3A {
@@ -568,7 +575,7 @@ fn rest_sum<S>(rest: &RestState, i: usize, src: &[S], x: impl Fn(&S) -> [Vec3A; 
     if k < m {
         add(&mut c[..3], at(js[k]), w_at(k));
     }
-    let u = Vec3A::splat(rest.w_unit[i]);
+    let u = Vec3A::splat(rest.w_unit(i));
     [(c[0] + c[3]) * u, (c[1] + c[4]) * u, (c[2] + c[5]) * u]
 }
 
@@ -972,7 +979,7 @@ mod tests {
                 let j = rest.j[p] as usize;
                 let xij = x0[i] - x0[j];
                 let exact = rest.volume[j] * (kernel.grad_over_r(xij.length()) * xij);
-                let err = (rest.w(i, p) - exact).abs().max_element() / rest.w_unit[i];
+                let err = (rest.w(i, p) - exact).abs().max_element() / rest.w_unit(i);
                 worst = worst.max(err);
                 let back = rest.range(j).find(|&m| rest.j[m] as usize == i).expect("symmetric rest pairs");
                 for c in 0..3 {
