@@ -20,6 +20,7 @@ pub mod neighbors;
 pub mod phase_transport;
 pub mod phases;
 pub mod porous;
+pub mod rest_lattice;
 pub mod rigid_modes;
 pub mod soa;
 pub mod solid_rows;
