@@ -1309,10 +1309,11 @@ mod tests {
     /// |(M A) v| for four bodies in one rest state (a block with holes
     /// cut out and a fixed particle, a ball, a block offset by a
     /// non-multiple of d, a bar long enough for chunks of the template
-    /// pattern), rotated and sheared, with masses and Lamé
+    /// pattern) and three particles without rest pairs, a body each,
+    /// rotated and sheared, with masses and Lamé
     /// parameters varying by particle. A body off the lattice (one
-    /// particle moved by 0.1 d) leaves the whole rest state on the pair
-    /// list.
+    /// particle moved by 0.3 d) leaves the whole rest state on the pair
+    /// list; a long bar far from the origin does not.
     #[test]
     fn lattice_apply_is_the_pair_apply_to_rounding() {
         let d = 0.01;
@@ -1341,6 +1342,11 @@ mod tests {
         for p in block([40, 6, 6], d) {
             x0.push(p + Vec3::new(0.0, -0.3, 0.0));
             body.push(3);
+        }
+        // Particles without rest pairs, a body each (as granular ones).
+        for k in 0..3 {
+            x0.push(Vec3::new(-0.5, 0.1 * k as f32, 0.0));
+            body.push(4 + k);
         }
         let n = x0.len();
         // Masses that vary by particle, but for the bar (whose interior
@@ -1376,8 +1382,10 @@ mod tests {
                 coarse: None,
             };
             let (mut scratch, mut out) = (ProductScratch::default(), vec![Vec3::ZERO; n]);
-            // Twice with one scratch: nothing is left over from a call.
-            sys.apply(&v, &mut scratch, &mut out);
+            // After a call with other velocities, in the same scratch:
+            // nothing is left over from a call.
+            let other: Vec<Vec3> = v.iter().map(|&v| 3.0 * Vec3::new(v.y, v.z, v.x) + Vec3::ONE).collect();
+            sys.apply(&other, &mut scratch, &mut out);
             sys.apply(&v, &mut scratch, &mut out);
             out
         };
@@ -1385,11 +1393,19 @@ mod tests {
         let largest = want.iter().map(|o| o.abs().max_element()).fold(0.0, f32::max);
         let err = got.iter().zip(&want).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f32::max) / largest;
         assert_eq!(got[17], want[17], "the fixed row is m v");
+        assert_eq!(got[n - 3..], want[n - 3..], "rows without rest pairs are m v");
         assert!(err < 1e-5, "(M A) v {err:.2e} of the largest value");
         println!("lattice against pairs: {err:.2e} of the largest value, {n} particles, {template} of {chunks} chunks from templates");
         let mut moved = x0.clone();
-        moved[40].x += 0.1 * d;
+        moved[40].x += 0.3 * d;
         assert!(!RestState::new(&moved, &body, &mass, &kernel).has_lattice(), "a particle off the lattice");
+        // A long bar far from the origin at the paper's spacing: the f32
+        // rounding of its positions and spacing does not hide its lattice.
+        let d = 0.0024;
+        let bar: Vec<Vec3> = block([400, 3, 3], d).into_iter().map(|p| p + Vec3::new(1.3, 0.7, 0.2)).collect();
+        let m = bar.len();
+        let rest = RestState::new(&bar, &vec![0; m], &vec![600.0 * d * d * d; m], &Kernel::new(2.0 * d));
+        assert!(rest.has_lattice(), "a 400-particle bar at x = 1.3 m is on a lattice");
     }
 
     /// [`conjugate_gradients_from`]: a pressure solve's sequence of
