@@ -97,8 +97,13 @@ impl RestState {
 
     /// The unit of particle i's w_ij, U / V_i0.
     #[inline(always)]
-    pub(crate) fn w_unit(&self, i: usize) -> f32 {
+    fn w_unit(&self, i: usize) -> f32 {
         self.w_scale / self.volume[i]
+    }
+
+    /// The unit U of the stored integers (w_ij = q_ij U / V_i0).
+    pub(crate) fn w_scale(&self) -> f32 {
+        self.w_scale
     }
 
     /// V_i0 w_ij of pair p in units of `w_scale` (exact integers).
@@ -1241,11 +1246,7 @@ mod tests {
         let mass: Vec<f32> = (0..n).map(|i| 500.0 * d * d * d * (1.0 + 0.01 * (i % 7) as f32)).collect();
         // The pair list's product (the lattice's: the test below).
         let rest = RestState::new(&x0, &vec![0; n], &mass, &Kernel::new(2.0 * d)).without_lattice();
-        let r = Mat3::from_quat(Quat::from_axis_angle(Vec3::new(0.3, 1.0, -0.4).normalize(), 0.7));
-        let shear = Mat3::from_cols(Vec3::new(1.05, 0.02, 0.0), Vec3::new(0.1, 0.93, 0.01), Vec3::new(0.0, -0.03, 1.1));
-        let x: Vec<Vec3> = x0.iter().map(|&p| r * (shear * p)).collect();
-        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
-        deform(&rest, &x, &mut rot, &mut def);
+        let def = rotated_and_sheared(&rest, &x0);
         let lame: Vec<Lame> = (0..n).map(|i| Lame { mu: 5e4 + 10.0 * i as f32, lambda: 2e4 }).collect();
         let mut fixed = vec![0; n];
         fixed[17] = 1;
@@ -1259,9 +1260,7 @@ mod tests {
             jacobi: None,
             coarse: None,
         };
-        let v: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new((i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() - 0.5, 0.01 * i as f32))
-            .collect();
+        let v = swirl(n);
         let (mut scratch, mut out) = (ProductScratch::default(), vec![Vec3::ZERO; n]);
         sys.apply(&v, &mut scratch, &mut out);
         let t = &scratch.t;
@@ -1300,6 +1299,23 @@ mod tests {
         assert_eq!(out[17], want[17], "the fixed row is m v");
         assert!(t_err < 1e-5 && out_err < 1e-5, "T {t_err:.2e}, (M A) v {out_err:.2e} of the largest value");
         println!("T {t_err:.2e}, (M A) v {out_err:.2e} of the largest value");
+    }
+
+    /// The deformation of `rest`'s particles at `x0` rotated and sheared
+    /// (RL_i a full matrix), for the products' tests.
+    fn rotated_and_sheared(rest: &RestState, x0: &[Vec3]) -> Vec<Deformation> {
+        let n = x0.len();
+        let r = Mat3::from_quat(Quat::from_axis_angle(Vec3::new(0.3, 1.0, -0.4).normalize(), 0.7));
+        let shear = Mat3::from_cols(Vec3::new(1.05, 0.02, 0.0), Vec3::new(0.1, 0.93, 0.01), Vec3::new(0.0, -0.03, 1.1));
+        let x: Vec<Vec3> = x0.iter().map(|&p| r * (shear * p)).collect();
+        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
+        deform(rest, &x, &mut rot, &mut def);
+        def
+    }
+
+    /// A velocity field with all three components, for the products' tests.
+    fn swirl(n: usize) -> Vec<Vec3> {
+        (0..n).map(|i| Vec3::new((i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() - 0.5, 0.01 * i as f32)).collect()
     }
 
     /// The lattice stencils' product ([`crate::rest_lattice`]) is the pair
@@ -1358,18 +1374,12 @@ mod tests {
         let (template, chunks) = rest.lattice().expect("lattice bodies get stencils").template_chunks();
         assert!(template > 0 && template < chunks, "{template} of {chunks} chunks read a template");
         let pairs = rest.clone().without_lattice();
-        let r = Mat3::from_quat(Quat::from_axis_angle(Vec3::new(0.3, 1.0, -0.4).normalize(), 0.7));
-        let shear = Mat3::from_cols(Vec3::new(1.05, 0.02, 0.0), Vec3::new(0.1, 0.93, 0.01), Vec3::new(0.0, -0.03, 1.1));
-        let x: Vec<Vec3> = x0.iter().map(|&p| r * (shear * p)).collect();
-        let (mut rot, mut def) = (vec![Quat::IDENTITY; n], vec![Deformation::default(); n]);
-        deform(&rest, &x, &mut rot, &mut def);
+        let def = rotated_and_sheared(&rest, &x0);
         let lame: Vec<Lame> =
             (0..n).map(|i| Lame { mu: 5e4 + 10.0 * i as f32, lambda: 2e4 + 5.0 * i as f32 }).collect();
         let mut fixed = vec![0; n];
         fixed[17] = 1;
-        let v: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new((i as f32 * 0.37).sin(), (i as f32 * 0.11).cos() - 0.5, 0.01 * i as f32))
-            .collect();
+        let v = swirl(n);
         let product = |rest: &RestState| {
             let sys = System {
                 rest,

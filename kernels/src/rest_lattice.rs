@@ -85,12 +85,13 @@ pub struct RestLattice {
     /// chunk's w in one stream: with a stream an offset and component, 78
     /// of them, the loads waited on memory); 0 where there is no pair.
     wq: Vec<i16>,
-    /// U / V_i0 of each slot's particle, 0 where empty.
-    unit: Vec<f32>,
     /// s_i = sum_j w_ij of each slot's particle, one array a component.
     wsum: Vec<f32>,
-    /// V_i0 of each slot's particle.
+    /// V_i0 of each slot's particle; 1 where empty (any finite value: an
+    /// empty slot's sums are 0, and its unit U / V must be finite).
     volume: Vec<f32>,
+    /// The unit U of the integers (w_ij = q_ij U / V_i0).
+    w_scale: f32,
 }
 
 impl RestLattice {
@@ -199,9 +200,9 @@ impl RestLattice {
             chunk_box: vec![NO_BOX; slots / LANES],
             chunk_w: vec![TEMPLATE; slots / LANES],
             wq: Vec::new(),
-            unit: vec![0.0; slots],
             wsum: vec![0.0; 3 * slots],
-            volume: vec![0.0; slots],
+            volume: vec![1.0; slots],
+            w_scale: rest.w_scale(),
             boxes: Vec::new(),
         };
         // Each particle's position in its body's list.
@@ -227,7 +228,6 @@ impl RestLattice {
                 }
                 lat.particle[s] = i as u32;
                 lat.slot[i] = s as u32;
-                lat.unit[s] = rest.w_unit(i);
                 lat.volume[s] = rest.volume[i];
                 for c in 0..3 {
                     lat.wsum[c * slots + s] = rest.wsum[i][c];
@@ -276,6 +276,13 @@ impl RestLattice {
         Some(lat)
     }
 
+    /// U / V_i0 of the chunk of slots from `s0` (as [`RestState`]'s
+    /// per-particle unit).
+    #[inline(always)]
+    fn unit(&self, s0: usize) -> F {
+        F::splat(self.w_scale) / load(&self.volume, s0)
+    }
+
     /// Number of slots, guards included.
     pub fn slots(&self) -> usize {
         self.particle.len()
@@ -297,7 +304,6 @@ impl RestLattice {
             + self.particle.capacity()
             + self.chunk_box.capacity()
             + self.chunk_w.capacity())
-            + 4 * self.unit.capacity()
             + 4 * (self.wsum.capacity() + self.volume.capacity())
             + 2 * self.wq.capacity()
             + self.boxes.iter().map(|b| 8 * b.offsets.capacity() + 4 * b.template.capacity() + 56).sum::<usize>()
@@ -336,7 +342,7 @@ impl RestLattice {
                         strain_sum(vs, s0, &bx.offsets, |kc| load_i16(wq, kc * LANES))
                     }
                 };
-                let u = load(&self.unit, s0);
+                let u = self.unit(s0);
                 let g = g.map(|gc| gc.map(|x| x * u));
                 // Each lane's RL and Lamé parameters, read particle by
                 // particle (the records are consecutive in store order; a
@@ -387,7 +393,7 @@ impl RestLattice {
                     stress_sum(&ts, s0, &bx.offsets, |kc| load_i16(wq, kc * LANES))
                 }
             };
-            let u = load(&self.unit, s0);
+            let u = self.unit(s0);
             let ti: [F; 9] = std::array::from_fn(|c| load(ts[c], s0));
             let si: [F; 3] = std::array::from_fn(|c| load(&self.wsum[c * ns..(c + 1) * ns], s0));
             let dt_v = load(&self.volume, s0) * F::splat(dt);
