@@ -806,6 +806,7 @@ fn partition_command(
 }
 
 fn main() -> ExitCode {
+    porosph_kernels::neighbors::large_allocations_from_mmap();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run { scene, out, args } => run_command(scene, out, args),

@@ -364,6 +364,7 @@ fn cpu_snapshot() -> Option<(u64, u64, u64)> {
 }
 
 fn main() {
+    porosph_kernels::neighbors::large_allocations_from_mmap();
     let a = match parse() {
         Ok(a) => a,
         Err(e) => {

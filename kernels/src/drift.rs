@@ -77,7 +77,7 @@
 //! alpha_k u_mk would be 0.
 
 use crate::blocks::BLOCK;
-use crate::lanes::{gather, load, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{PhaseConstants, PhaseVel, MIN_ALPHA_F, MIN_PHASE_FRACTION};
 use crate::soa::{Vel, VelMut};
@@ -269,13 +269,11 @@ fn gradients_group<const G: usize, const PRESSURE: bool>(
 ) -> ([[f32; 3]; G], [[f32; 3]; G]) {
     let (vai, vpi) = (ai.map(F::splat), pki.map(F::splat));
     let (mut ga, mut gp) = ([[F::ZERO; 3]; G], [[F::ZERO; 3]; G]);
-    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-    let mut p = r.start;
-    while p < r.end {
-        let (x, y, z) = (load(gx, p), load(gy, p), load(gz, p));
-        let pj = if PRESSURE { gather(pf, j, p) } else { F::ZERO };
+    for v in pair_vectors(&blk.j, r) {
+        let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
+        let pj = if PRESSURE { v.gather(pf) } else { F::ZERO };
         for k in 0..G {
-            let aj = gather(alpha[k], j, p);
+            let aj = v.gather(alpha[k]);
             let da = aj - vai[k];
             ga[k][0] += da * x;
             ga[k][1] += da * y;
@@ -287,7 +285,6 @@ fn gradients_group<const G: usize, const PRESSURE: bool>(
                 gp[k][2] += dp * z;
             }
         }
-        p += LANES;
     }
     (ga.map(|g| g.map(sum)), gp.map(|g| g.map(sum)))
 }
@@ -307,22 +304,19 @@ fn gradients<const PRESSURE: bool>(
     let (vai, vpi) = (F::splat(ai), F::splat(pki));
     let (mut gax, mut gay, mut gaz) = (F::ZERO, F::ZERO, F::ZERO);
     let (mut gpx, mut gpy, mut gpz) = (F::ZERO, F::ZERO, F::ZERO);
-    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-    let mut k = r.start;
-    while k < r.end {
-        let aj = gather(alpha_k, j, k);
+    for v in pair_vectors(&blk.j, r) {
+        let aj = v.gather(alpha_k);
         let da = aj - vai;
-        let (x, y, z) = (load(gx, k), load(gy, k), load(gz, k));
+        let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
         gax += da * x;
         gay += da * y;
         gaz += da * z;
         if PRESSURE {
-            let dp = aj * gather(pf, j, k) - vpi;
+            let dp = aj * v.gather(pf) - vpi;
             gpx += dp * x;
             gpy += dp * y;
             gpz += dp * z;
         }
-        k += LANES;
     }
     ([sum(gax), sum(gay), sum(gaz)], [sum(gpx), sum(gpy), sum(gpz)])
 }

@@ -14,7 +14,7 @@
 //! sign. `sign` is -1 for the physical form, +1 for the codes' form.
 
 use crate::blocks::BLOCK;
-use crate::lanes::{gather, load, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, F};
 use crate::neighbors::PairLists;
 use crate::phases::PhaseVel;
 use crate::soa::VelMut;
@@ -84,20 +84,16 @@ pub fn drift_momentum(inp: &DriftMomentumInput, out: VelMut, t: [&mut [f32]; 6])
                 let i = b * BLOCK + q;
                 let (mut ax, mut ay, mut az) = (F::ZERO, F::ZERO, F::ZERO);
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-                let r = blk.range(q);
-                let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-                let mut p = r.start;
-                while p < r.end {
-                    let (x, y, z) = (load(gx, p), load(gy, p), load(gz, p));
+                for v in pair_vectors(&blk.j, blk.range(q)) {
+                    let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
                     sx += x;
                     sy += y;
                     sz += z;
-                    let (xx, yy, zz) = (gather(txx, j, p), gather(tyy, j, p), gather(tzz, j, p));
-                    let (xy, xz, yz) = (gather(txy, j, p), gather(txz, j, p), gather(tyz, j, p));
+                    let (xx, yy, zz) = (v.gather(txx), v.gather(tyy), v.gather(tzz));
+                    let (xy, xz, yz) = (v.gather(txy), v.gather(txz), v.gather(tyz));
                     ax += xx * x + xy * y + xz * z;
                     ay += xy * x + yy * y + yz * z;
                     az += xz * x + yz * y + zz * z;
-                    p += LANES;
                 }
                 // The particle's own terms: T_i . sum_j g_ij.
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));

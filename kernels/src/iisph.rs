@@ -17,7 +17,7 @@
 //! g_ij = Vbar_ij grad W_ij with Vbar_ij = 2 V_i V_j / (V_i + V_j).
 
 use crate::blocks::BLOCK;
-use crate::lanes::{gather, load, store, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::iter::Either;
@@ -138,12 +138,9 @@ pub fn kernel_sums(pairs: &PairLists, val: &[f32], out: &mut [f32]) {
 
 #[inline(always)]
 pub(crate) fn weighted_sum(j: &[u32], w: &[f32], r: std::ops::Range<usize>, val: &[f32]) -> f32 {
-    let (j, w) = (&j[..r.end], &w[..r.end]);
     let mut acc = F::ZERO;
-    let mut k = r.start;
-    while k < r.end {
-        acc += gather(val, j, k) * load(w, k);
-        k += LANES;
+    for v in pair_vectors(j, r) {
+        acc += v.gather(val) * v.load(w);
     }
     sum(acc)
 }
@@ -164,14 +161,12 @@ pub(crate) fn harmonic_volumes(vi: F, vj: F) -> F {
 pub(crate) fn scale_pairs(blk: &mut PairBlock, q: usize, vi: f32, vol_t: &[f32]) {
     let r = blk.range(q);
     let vi = F::splat(vi);
-    let mut k = r.start;
-    while k < r.end {
-        let s = harmonic_volumes(vi, gather(vol_t, &blk.j, k));
-        let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
-        store(&mut blk.gx, k, x * s);
-        store(&mut blk.gy, k, y * s);
-        store(&mut blk.gz, k, z * s);
-        k += LANES;
+    for v in pair_vectors(&blk.j, r) {
+        let s = harmonic_volumes(vi, v.gather(vol_t));
+        let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
+        v.store(&mut blk.gx, x * s);
+        v.store(&mut blk.gy, y * s);
+        v.store(&mut blk.gz, z * s);
     }
 }
 
@@ -303,46 +298,37 @@ pub fn fluid_setup(
                 let mut div = F::ZERO;
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
                 let mut s2 = F::ZERO;
-                let r = bf.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    let (x, y, z) = (load(&bf.gx, k), load(&bf.gy, k), load(&bf.gz, k));
-                    let dux = uxi - gather(u.x, &bf.j, k);
-                    let duy = uyi - gather(u.y, &bf.j, k);
-                    let duz = uzi - gather(u.z, &bf.j, k);
+                for v in pair_vectors(&bf.j, bf.range(q)) {
+                    let (x, y, z) = (v.load(&bf.gx), v.load(&bf.gy), v.load(&bf.gz));
+                    let dux = uxi - v.gather(u.x);
+                    let duy = uyi - v.gather(u.y);
+                    let duz = uzi - v.gather(u.z);
                     div -= dux * x + duy * y + duz * z;
                     sx += x;
                     sy += y;
                     sz += z;
-                    s2 += gather(rows.vm, &bf.j, k) * (x * x + y * y + z * z);
-                    k += LANES;
+                    s2 += v.gather(rows.vm) * (x * x + y * y + z * z);
                 }
-                let r = bb.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    let (x, y, z) = (load(&bb.gx, k), load(&bb.gy, k), load(&bb.gz, k));
+                for v in pair_vectors(&bb.j, bb.range(q)) {
+                    let (x, y, z) = (v.load(&bb.gx), v.load(&bb.gy), v.load(&bb.gz));
                     div -= uxi * x + uyi * y + uzi * z;
                     sx += x;
                     sy += y;
                     sz += z;
-                    k += LANES;
                 }
                 let mut s2_solid = F::ZERO;
                 if let Some(bs) = bs.as_deref() {
                     let us = rows.u_solid;
-                    let r = bs.range(q);
-                    let mut k = r.start;
-                    while k < r.end {
-                        let (x, y, z) = (load(&bs.gx, k), load(&bs.gy, k), load(&bs.gz, k));
-                        let dux = uxi - gather(us.x, &bs.j, k);
-                        let duy = uyi - gather(us.y, &bs.j, k);
-                        let duz = uzi - gather(us.z, &bs.j, k);
+                    for v in pair_vectors(&bs.j, bs.range(q)) {
+                        let (x, y, z) = (v.load(&bs.gx), v.load(&bs.gy), v.load(&bs.gz));
+                        let dux = uxi - v.gather(us.x);
+                        let duy = uyi - v.gather(us.y);
+                        let duz = uzi - v.gather(us.z);
                         div -= dux * x + duy * y + duz * z;
                         sx += x;
                         sy += y;
                         sz += z;
-                        s2_solid += gather(rows.mobility_solid, &bs.j, k) * (x * x + y * y + z * z);
-                        k += LANES;
+                        s2_solid += v.gather(rows.mobility_solid) * (x * x + y * y + z * z);
                     }
                 }
                 let (sx, sy, sz) = (sum(sx), sum(sy), sum(sz));
@@ -413,14 +399,11 @@ pub fn wall_gradient_sums(fb: &PairLists, out: VelMut) {
     let blocks = out.x.par_chunks_mut(BLOCK).zip(out.y.par_chunks_mut(BLOCK)).zip(out.z.par_chunks_mut(BLOCK));
     blocks.zip(fb.used().par_iter()).for_each(|(((ox, oy), oz), blk)| {
         for q in 0..ox.len() {
-            let r = blk.range(q);
             let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-            let mut k = r.start;
-            while k < r.end {
-                sx += load(&blk.gx, k);
-                sy += load(&blk.gy, k);
-                sz += load(&blk.gz, k);
-                k += LANES;
+            for v in pair_vectors(&blk.j, blk.range(q)) {
+                sx += v.load(&blk.gx);
+                sy += v.load(&blk.gy);
+                sz += v.load(&blk.gz);
             }
             (ox[q], oy[q], oz[q]) = (sum(sx), sum(sy), sum(sz));
         }
@@ -456,20 +439,17 @@ pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32
             for (q, (src, dg)) in src.iter_mut().zip(dg.iter_mut()).enumerate() {
                 let i = b * BLOCK + q;
                 scale_pairs(blk, q, rows.vol[i], rows.vol_fluid);
-                let r = blk.range(q);
                 let (mut div, mut s2, mut all) = (F::ZERO, F::ZERO, F::ZERO);
                 let u = rows.u_star;
-                let mut k = r.start;
-                while k < r.end {
-                    let (x, y, z) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
-                    div += gather(u.x, &blk.j, k) * x + gather(u.y, &blk.j, k) * y + gather(u.z, &blk.j, k) * z;
-                    let vm = gather(rows.vm_fluid, &blk.j, k);
+                for v in pair_vectors(&blk.j, blk.range(q)) {
+                    let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
+                    div += v.gather(u.x) * x + v.gather(u.y) * y + v.gather(u.z) * z;
+                    let vm = v.gather(rows.vm_fluid);
                     s2 += vm * (x * x + y * y + z * z);
                     if let Some(g) = rows.fluid_wall_gradient {
-                        let gf = x * gather(g.x, &blk.j, k) + y * gather(g.y, &blk.j, k) + z * gather(g.z, &blk.j, k);
+                        let gf = x * v.gather(g.x) + y * v.gather(g.y) + z * v.gather(g.z);
                         all -= vm * gf;
                     }
-                    k += LANES;
                 }
                 *src = 1.0 + dt * sum(div) - rows.sigma[i];
                 *dg = -dt2 * sum(s2).max(sum(all));
@@ -523,28 +503,22 @@ pub fn pressure_acceleration(
 /// `ai` the row's own a^p (zero for a wall) and `a` the neighbours'.
 #[inline(always)]
 pub(crate) fn add_relative_accel(acc: &mut F, blk: &PairBlock, r: std::ops::Range<usize>, ai: [F; 3], a: Vel) {
-    let mut k = r.start;
-    while k < r.end {
-        *acc += (ai[0] - gather(a.x, &blk.j, k)) * load(&blk.gx, k)
-            + (ai[1] - gather(a.y, &blk.j, k)) * load(&blk.gy, k)
-            + (ai[2] - gather(a.z, &blk.j, k)) * load(&blk.gz, k);
-        k += LANES;
+    for v in pair_vectors(&blk.j, r) {
+        *acc += (ai[0] - v.gather(a.x)) * v.load(&blk.gx)
+            + (ai[1] - v.gather(a.y)) * v.load(&blk.gy)
+            + (ai[2] - v.gather(a.z)) * v.load(&blk.gz);
     }
 }
 
 /// Adds sum_j (p_i + p_j) g_ij over the pairs of query `q` to `acc`.
 #[inline(always)]
 fn pressure_sum(blk: &PairBlock, q: usize, p: &[f32], pi: F, acc: [&mut F; 3]) {
-    let r = blk.range(q);
-    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
     let [sx, sy, sz] = acc;
-    let mut k = r.start;
-    while k < r.end {
-        let s = pi + gather(p, j, k);
-        *sx += s * load(gx, k);
-        *sy += s * load(gy, k);
-        *sz += s * load(gz, k);
-        k += LANES;
+    for v in pair_vectors(&blk.j, blk.range(q)) {
+        let s = pi + v.gather(p);
+        *sx += s * v.load(&blk.gx);
+        *sy += s * v.load(&blk.gy);
+        *sz += s * v.load(&blk.gz);
     }
 }
 
@@ -703,11 +677,8 @@ pub fn fluid_jacobi(
                 let (axi, ayi, azi) = (F::splat(ap.x[i]), F::splat(ap.y[i]), F::splat(ap.z[i]));
                 let mut acc = F::ZERO;
                 add_relative_accel(&mut acc, bf, bf.range(q), [axi, ayi, azi], ap);
-                let r = bb.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    acc += axi * load(&bb.gx, k) + ayi * load(&bb.gy, k) + azi * load(&bb.gz, k);
-                    k += LANES;
+                for v in pair_vectors(&bb.j, bb.range(q)) {
+                    acc += axi * v.load(&bb.gx) + ayi * v.load(&bb.gy) + azi * v.load(&bb.gz);
                 }
                 if let (Some(bs), Some(a)) = (bs, a_s) {
                     add_relative_accel(&mut acc, bs, bs.range(q), [axi, ayi, azi], a);

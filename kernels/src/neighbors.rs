@@ -9,7 +9,7 @@
 use crate::blocks::BLOCK;
 use crate::grid::{cell_of, morton, CellGrid};
 use crate::kernel::{Kernel, KernelShape};
-use crate::lanes::{gather, load, load_partial, store, sum, F, LANES};
+use crate::lanes::{load_partial, pair_vectors, sum, F, LANES};
 use crate::soa::Vel;
 use rayon::prelude::*;
 
@@ -204,9 +204,12 @@ pub fn sort_permutation(keys: &[u64], scratch: &mut Vec<(u64, u32)>, perm: &mut 
 /// their kernel values and gradients. Targets must be sorted by the cells of
 /// `grid`. Pairs of a query are in ascending target order.
 ///
-/// Each query's pairs are padded to a whole number of SIMD vectors with
-/// pairs of weight and gradient 0 (target index: the query's first real
-/// neighbour, or 0), so that every pass loads whole vectors.
+/// The queries' pairs follow each other without padding; a pass reads
+/// them a vector at a time with [`crate::lanes::pair_vectors`], whose last
+/// vector of a query masks the lanes past its pairs (bench/RESULTS.md,
+/// "Pair lists without padding": the padding to whole vectors was 7 % of
+/// the fluid-fluid slots of the 1 M dam break, 14 % at 250k, and most of
+/// the short wall and solid lists' slots).
 ///
 /// `near`, if given, is a set of cells outside which no query has a target
 /// within reach (see [`CellGrid::dilated_keys`]); queries there are skipped
@@ -268,15 +271,8 @@ pub fn update_sums(ff: &PairLists, x: Vel, kernel: &Kernel, old: &[f32], new: &[
                 continue;
             }
             let dv = new[j] - old[j];
-            let r = blk.range(q);
-            let first = r.start;
-            for p in r {
+            for p in blk.range(q) {
                 let i = blk.j[p] as usize;
-                // The padding repeats the first pair's index (a list holds
-                // each neighbour once).
-                if p > first && i == blk.j[first] as usize {
-                    break;
-                }
                 let (dx, dy, dz) = (x.x[i] - x.x[j], x.y[i] - x.y[j], x.z[i] - x.z[j]);
                 sums[i] += dv * kernel.w((dx * dx + dy * dy + dz * dz).sqrt());
             }
@@ -319,6 +315,7 @@ fn build<const W: bool>(
             let caps = blk.capacities();
             block_pairs::<W>(blk, cand, query, lo..(lo + BLOCK).min(n), target, grid, near, kernel, sums);
             if blk.capacities() != caps {
+                blk.keep_headroom(W);
                 blk.release_tails();
             }
         })
@@ -329,6 +326,31 @@ impl PairBlock {
     /// The capacities of the pair lists.
     fn capacities(&self) -> [usize; 5] {
         [self.j.capacity(), self.w.capacity(), self.gx.capacity(), self.gy.capacity(), self.gz.capacity()]
+    }
+
+    /// After the lists grew: their capacity to a quarter above their
+    /// length, so that the slow drift of the pair counts in a settling pool
+    /// does not make a later step grow them again (a steady-state step
+    /// allocates nothing, tests/no_alloc.rs). Growing by doubling alone
+    /// left that to chance: without the padding, which rounded every
+    /// query's count up to 16, one block of the hydrostatic tank's lists
+    /// grew from 2,048 to 4,096 slots within steps 101-150, its count having
+    /// crept past the capacity its first step's doubling ended at. The
+    /// capacity past the length is not written, so it costs no resident
+    /// memory ([`Self::release_tails`]).
+    fn keep_headroom(&mut self, with_w: bool) {
+        let len = self.j.len();
+        let want = len + len / 4 + LANES;
+        if self.j.capacity() < want {
+            let more = want - len;
+            self.j.reserve_exact(more);
+            self.gx.reserve_exact(more);
+            self.gy.reserve_exact(more);
+            self.gz.reserve_exact(more);
+            if with_w {
+                self.w.reserve_exact(more);
+            }
+        }
     }
 
     /// Hands the whole pages of the lists' unused capacity back to the
@@ -375,6 +397,27 @@ fn release_tail<T>(v: &Vec<T>) {
                 libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_DONTNEED);
             }
         }
+    }
+}
+
+/// Makes the C library serve every allocation of 64 KiB or more from its
+/// own mapping, returned to the system when freed (glibc: a fixed
+/// `M_MMAP_THRESHOLD`; elsewhere nothing). For the binaries, at start.
+///
+/// The pair lists are per-block vectors of 30-60 KiB each (512 queries,
+/// about 30 pairs a query, 4 bytes a slot) that grow while the pairs are
+/// built. glibc's default threshold starts at 128 KiB and rises to the
+/// size of any mapped block that is freed, so these vectors are carved
+/// from the worker threads' heaps, where the pages of the ones they
+/// outgrew stay resident. Measured (bench/RESULTS.md, "Pair lists without
+/// padding"): peak RSS of the 1 M dam break 882 -> 741-752 MB, Example 1
+/// at the paper's size 675 -> 629 MB, the same step times.
+pub fn large_allocations_from_mmap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only changes the allocator's threshold; called before
+    // any thread allocates (at the start of main).
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 64 * 1024);
     }
 }
 
@@ -453,16 +496,9 @@ fn block_pairs<const W: bool>(
         for i in i..e {
             let first = blk.j.len();
             query_pairs(blk, cand, [query.x[i], query.y[i], query.z[i]], h2);
-            // Pad to whole vectors with zero pairs.
             let real = blk.j.len() - first;
-            let pad = blk.j.get(first).copied().unwrap_or(0);
-            let end = first + real.next_multiple_of(LANES);
-            blk.j.resize(end, pad);
-            blk.gx.resize(end, 0.0);
-            blk.gy.resize(end, 0.0);
-            blk.gz.resize(end, 0.0);
             if W {
-                blk.w.resize(end, 0.0);
+                blk.w.resize(first + real, 0.0);
             }
             // Pass 2, the shape chosen once per query, not per vector.
             let val = sums.as_ref().map(|s| s.0);
@@ -626,10 +662,10 @@ fn query_pairs(blk: &mut PairBlock, cand: &Candidates, q: [f32; 3], h2: f32) {
 }
 
 /// Pass 2 of [`build_pairs`] for one query: kernel values and gradients
-/// (`wg` gives W and W'/r) of its `real` pairs from `first`, a whole
-/// vector at a time (padding lanes stay 0). Stores W if `W`; returns
-/// sum_j val_j W_ij where `val` is given (as `iisph::weighted_sum` sums
-/// the stored values), else 0.
+/// (`wg` gives W and W'/r) of its `real` pairs from `first`, a vector at a
+/// time ([`pair_vectors`]: the last one partial, its other lanes neither
+/// read nor written). Stores W if `W`; returns sum_j val_j W_ij where
+/// `val` is given (as `iisph::weighted_sum` sums the stored values), else 0.
 #[inline(always)]
 fn kernel_values<const W: bool>(
     blk: &mut PairBlock,
@@ -639,25 +675,21 @@ fn kernel_values<const W: bool>(
     wg: impl Fn(F) -> (F, F),
 ) -> f32 {
     let mut acc = F::ZERO;
-    let mut k = first;
-    while k < blk.j.len() {
-        let (dx, dy, dz) = (load(&blk.gx, k), load(&blk.gy, k), load(&blk.gz, k));
+    for v in pair_vectors(&blk.j, first..first + real) {
+        let (dx, dy, dz) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
         let r = (dx * dx + dy * dy + dz * dz).sqrt();
-        let valid = (real + first).saturating_sub(k).min(LANES);
-        let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < valid { 1.0 } else { 0.0 }));
+        let keep = F::from(std::array::from_fn::<f32, LANES, _>(|l| if l < v.n { 1.0 } else { 0.0 }));
         let (w, g) = wg(r);
-        let g = g * keep;
         let w = w * keep;
         if W {
-            store(&mut blk.w, k, w);
+            v.store(&mut blk.w, w);
         }
         if let Some(val) = val {
-            acc += gather(val, &blk.j, k) * w;
+            acc += v.gather(val) * w;
         }
-        store(&mut blk.gx, k, g * dx);
-        store(&mut blk.gy, k, g * dy);
-        store(&mut blk.gz, k, g * dz);
-        k += LANES;
+        v.store(&mut blk.gx, g * dx);
+        v.store(&mut blk.gy, g * dy);
+        v.store(&mut blk.gz, g * dz);
     }
     sum(acc)
 }

@@ -38,7 +38,7 @@
 //!   front), not in a uniform bulk.
 
 use crate::blocks::BLOCK;
-use crate::lanes::{gather, load, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{join, split, PhaseVel};
 use crate::soa::Vel;
@@ -136,8 +136,8 @@ pub fn transport(
 /// test, negated differences), and an inner list `ffb` holds every
 /// neighbour of a particle that has any (`copy_scaled_where`), which a
 /// limited particle has: only a nonzero pair flux limits. Marking a
-/// particle without a limited neighbour (a padding lane) is harmless: with
-/// every Lambda_ij = 1, [`limited_sums`] repeats the unlimited sum.
+/// particle without a limited neighbour would be harmless: with every
+/// Lambda_ij = 1, [`limited_sums`] repeats the unlimited sum.
 fn near_limited<'a>(ff: &PairLists, least: &[f32], near: &'a mut [bool]) -> &'a [bool] {
     near.fill(false);
     if !least.par_iter().any(|&l| l < 1.0) {
@@ -231,17 +231,15 @@ fn outflow_group<const G: usize>(
     let fy: [&[f32]; G] = std::array::from_fn(|k| flux.y[k0 + k]);
     let fz: [&[f32]; G] = std::array::from_fn(|k| flux.z[k0 + k]);
     let (mut leave, mut sum_phi) = ([F::ZERO; G], [F::ZERO; G]);
-    let mut p = r.start;
-    while p < r.end {
-        let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
+    for v in pair_vectors(j, r.clone()) {
+        let (wx, wy, wz) = (v.load(gx), v.load(gy), v.load(gz));
         for k in 0..G {
-            let phi = (gather(fx[k], j, p) + fi[k][0]) * wx
-                + (gather(fy[k], j, p) + fi[k][1]) * wy
-                + (gather(fz[k], j, p) + fi[k][2]) * wz;
+            let phi = (v.gather(fx[k]) + fi[k][0]) * wx
+                + (v.gather(fy[k]) + fi[k][1]) * wy
+                + (v.gather(fz[k]) + fi[k][2]) * wz;
             leave[k] += phi.max(F::ZERO);
             sum_phi[k] += phi;
         }
-        p += LANES;
     }
     for k in 0..G {
         let a = alpha[k][i];
@@ -255,21 +253,21 @@ fn outflow_group<const G: usize>(
 /// phase, into `o`: the fluxes again, with the pair limits.
 fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f32], np: usize, o: &mut [f64]) {
     let r = blk.range(q);
-    let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
+    let (gx, gy, gz) = (&blk.gx, &blk.gy, &blk.gz);
     for k0 in (0..np).step_by(GROUP) {
         let g = (np - k0).min(GROUP);
         let mut acc = [F::ZERO; GROUP];
-        let mut p = r.start;
-        while p < r.end {
-            let (wx, wy, wz) = (load(gx, p), load(gy, p), load(gz, p));
+        for v in pair_vectors(&blk.j, r.clone()) {
+            let (wx, wy, wz) = (v.load(gx), v.load(gy), v.load(gz));
+            let j = v.indices();
             // Lambda_ij over all phases (not only this group's).
             let mut lam = F::splat(1.0);
             let mut phis = [F::ZERO; GROUP];
             for k in 0..np {
-                let phi = (gather(flux.x[k], j, p) + F::splat(flux.x[k][i])) * wx
-                    + (gather(flux.y[k], j, p) + F::splat(flux.y[k][i])) * wy
-                    + (gather(flux.z[k], j, p) + F::splat(flux.z[k][i])) * wz;
-                let lj = F::from(std::array::from_fn::<f32, LANES, _>(|l| limit[j[p + l] as usize * np + k]));
+                let phi = (v.gather(flux.x[k]) + F::splat(flux.x[k][i])) * wx
+                    + (v.gather(flux.y[k]) + F::splat(flux.y[k][i])) * wy
+                    + (v.gather(flux.z[k]) + F::splat(flux.z[k][i])) * wz;
+                let lj = F::from(std::array::from_fn::<f32, LANES, _>(|l| limit[j[l] as usize * np + k]));
                 let from_j = Select::select(phi.simd_lt(F::ZERO), lj, F::splat(1.0));
                 lam = lam.min(Select::select(phi.simd_gt(F::ZERO), F::splat(limit[i * np + k]), from_j));
                 if (k0..k0 + g).contains(&k) {
@@ -279,7 +277,6 @@ fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f3
             for k in 0..g {
                 acc[k] += phis[k] * lam;
             }
-            p += LANES;
         }
         for k in 0..g {
             o[k0 + k] = f64::from(sum(acc[k]));
@@ -313,16 +310,12 @@ pub fn transport_reference(
             let (vai, uxi, uyi, uzi) = (F::splat(ai), F::splat(u.x[i]), F::splat(u.y[i]), F::splat(u.z[i]));
             let (fxi, fyi, fzi) = (F::splat(flux.x[i]), F::splat(flux.y[i]), F::splat(flux.z[i]));
             let mut acc = F::ZERO;
-            let r = blk.range(q);
-            let (j, gx, gy, gz) = (&blk.j[..r.end], &blk.gx[..r.end], &blk.gy[..r.end], &blk.gz[..r.end]);
-            let mut p = r.start;
-            while p < r.end {
-                let c = half * (vai + gather(alpha_k, j, p));
-                let vx = c * (gather(u.x, j, p) - uxi) + gather(flux.x, j, p) + fxi;
-                let vy = c * (gather(u.y, j, p) - uyi) + gather(flux.y, j, p) + fyi;
-                let vz = c * (gather(u.z, j, p) - uzi) + gather(flux.z, j, p) + fzi;
-                acc += vx * load(gx, p) + vy * load(gy, p) + vz * load(gz, p);
-                p += LANES;
+            for v in pair_vectors(&blk.j, blk.range(q)) {
+                let c = half * (vai + v.gather(alpha_k));
+                let vx = c * (v.gather(u.x) - uxi) + v.gather(flux.x) + fxi;
+                let vy = c * (v.gather(u.y) - uyi) + v.gather(flux.y) + fyi;
+                let vz = c * (v.gather(u.z) - uzi) + v.gather(flux.z) + fzi;
+                acc += vx * v.load(&blk.gx) + vy * v.load(&blk.gy) + vz * v.load(&blk.gz);
             }
             *o = join(ai, alpha_lo[i]) - f64::from(dt) * f64::from(sum(acc));
         }

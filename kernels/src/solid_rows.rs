@@ -30,7 +30,7 @@
 
 use crate::blocks::BLOCK;
 use crate::iisph::{add_relative_accel, scale_pairs, weighted_sum, Jacobi, Rows};
-use crate::lanes::{gather, load, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
@@ -201,22 +201,17 @@ pub fn solid_setup(nb: SolidNeighboursMut, rows: SolidRows, dt: f32, source: &mu
                     let (uxi, uyi, uzi) = (F::splat(ui[0]), F::splat(ui[1]), F::splat(ui[2]));
                     let (mut d, mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO, F::ZERO);
                     let (mut fx, mut fy, mut fz, mut q2) = (F::ZERO, F::ZERO, F::ZERO, F::ZERO);
-                    let r = bf.range(q);
-                    let mut k = r.start;
-                    while k < r.end {
-                        let (x, y, z) = (load(&bf.gx, k), load(&bf.gy, k), load(&bf.gz, k));
-                        d -= (uxi - gather(u.x, &bf.j, k)) * x
-                            + (uyi - gather(u.y, &bf.j, k)) * y
-                            + (uzi - gather(u.z, &bf.j, k)) * z;
-                        let v = gather(rows.vol_fluid, &bf.j, k);
+                    for pv in pair_vectors(&bf.j, bf.range(q)) {
+                        let (x, y, z) = (pv.load(&bf.gx), pv.load(&bf.gy), pv.load(&bf.gz));
+                        d -= (uxi - pv.gather(u.x)) * x + (uyi - pv.gather(u.y)) * y + (uzi - pv.gather(u.z)) * z;
+                        let v = pv.gather(rows.vol_fluid);
                         sx += x;
                         sy += y;
                         sz += z;
                         fx += v * x;
                         fy += v * y;
                         fz += v * z;
-                        q2 += gather(rows.vm_fluid, &bf.j, k) * (x * x + y * y + z * z);
-                        k += LANES;
+                        q2 += pv.gather(rows.vm_fluid) * (x * x + y * y + z * z);
                     }
                     (sum(d), [sum(sx), sum(sy), sum(sz)], [sum(fx), sum(fy), sum(fz)], sum(q2))
                 };
@@ -321,14 +316,11 @@ pub fn solid_force(
                 let i = b * BLOCK + q;
                 let ps = F::splat(p_s[i]);
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-                let r = bf.range(q);
-                let mut k = r.start;
-                while k < r.end {
-                    let c = gather(vol_f, &bf.j, k) * (ps + gather(p_f, &bf.j, k));
-                    sx += c * load(&bf.gx, k);
-                    sy += c * load(&bf.gy, k);
-                    sz += c * load(&bf.gz, k);
-                    k += LANES;
+                for v in pair_vectors(&bf.j, bf.range(q)) {
+                    let c = v.gather(vol_f) * (ps + v.gather(p_f));
+                    sx += c * v.load(&bf.gx);
+                    sy += c * v.load(&bf.gy);
+                    sz += c * v.load(&bf.gz);
                 }
                 let mut f = [sum(sx), sum(sy), sum(sz)];
                 for k in bb.range(q) {

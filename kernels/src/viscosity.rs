@@ -3,7 +3,7 @@
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
 use crate::blocks::{sum_f64, BLOCK};
-use crate::lanes::{gather, load, store, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, PairVec, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
@@ -26,8 +26,8 @@ pub struct ViscosityInput<'a> {
 
 /// The phase pair weight w_ij of P-Eq. 23 for a vector of pairs.
 trait PairWeight: Sync {
-    /// `c` times w_ij for particle i and the pairs `j[p..p + LANES]`.
-    fn apply(&self, c: F, i: usize, j: &[u32], p: usize) -> F;
+    /// `c` times w_ij for particle i and the pairs of `v`.
+    fn apply(&self, c: F, i: usize, v: &PairVec) -> F;
 }
 
 /// One phase: w_ij = 1, and `c` is returned as it is (no multiply), so
@@ -36,7 +36,7 @@ struct Unweighted;
 
 impl PairWeight for Unweighted {
     #[inline(always)]
-    fn apply(&self, c: F, _: usize, _: &[u32], _: usize) -> F {
+    fn apply(&self, c: F, _: usize, _: &PairVec) -> F {
         c
     }
 }
@@ -49,10 +49,10 @@ struct PhaseWeights<'a>(&'a [&'a [f32]]);
 
 impl PairWeight for PhaseWeights<'_> {
     #[inline(always)]
-    fn apply(&self, c: F, i: usize, j: &[u32], p: usize) -> F {
+    fn apply(&self, c: F, i: usize, v: &PairVec) -> F {
         let mut w = F::ZERO;
         for a in self.0 {
-            let (ai, aj) = (F::splat(a[i]), gather(a, j, p));
+            let (ai, aj) = (F::splat(a[i]), v.gather(a));
             w += F::splat(2.0) * ai * aj / (ai + aj).max(F::splat(f32::MIN_POSITIVE));
         }
         c * w
@@ -61,19 +61,19 @@ impl PairWeight for PhaseWeights<'_> {
 
 /// The pair coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /
 /// (|x_ij|^2 + 0.01 h^2) of P-Eq. 23's Morris form for the pairs
-/// `k..k + LANES` of particle `i` in `blk` (>= 0, symmetric; 0 for the
-/// padding).
+/// `v` of particle `i` in `blk` (>= 0, symmetric; 0 in the lanes past
+/// the vector's pairs).
 #[inline(always)]
-fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, k: usize, i: usize, wt: &W) -> F {
+fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, v: &PairVec, i: usize, wt: &W) -> F {
     let eps = 0.01 * inp.h * inp.h;
-    let (x, j) = (inp.x, &blk.j);
-    let dx = F::splat(x.x[i]) - gather(x.x, j, k);
-    let dy = F::splat(x.y[i]) - gather(x.y, j, k);
-    let dz = F::splat(x.z[i]) - gather(x.z, j, k);
+    let x = inp.x;
+    let dx = F::splat(x.x[i]) - v.gather(x.x);
+    let dy = F::splat(x.y[i]) - v.gather(x.y);
+    let dz = F::splat(x.z[i]) - v.gather(x.z);
     let r2 = dx * dx + dy * dy + dz * dz;
     // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
-    let xg = -(dx * load(&blk.gx, k) + dy * load(&blk.gy, k) + dz * load(&blk.gz, k));
-    wt.apply((F::splat(inp.mu[i]) + gather(inp.mu, j, k)) * xg / (r2 + F::splat(eps)), i, j, k)
+    let xg = -(dx * v.load(&blk.gx) + dy * v.load(&blk.gy) + dz * v.load(&blk.gz));
+    wt.apply((F::splat(inp.mu[i]) + v.gather(inp.mu)) * xg / (r2 + F::splat(eps)), i, v)
 }
 
 /// a^visc_i (P-Eq. 23) of particle `i`, the query `q` of block `blk`.
@@ -83,15 +83,11 @@ fn viscous_acceleration<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, q:
     let (mut ax, mut ay, mut az) = (F::ZERO, F::ZERO, F::ZERO);
     let (uxi, uyi, uzi) = (F::splat(u.x[i]), F::splat(u.y[i]), F::splat(u.z[i]));
     let rhoi = inp.rest_density[i];
-    let r = blk.range(q);
-    let j = &blk.j;
-    let mut k = r.start;
-    while k < r.end {
-        let c = pair_coefficients(inp, blk, k, i, wt);
-        ax += c * (gather(u.x, j, k) - uxi);
-        ay += c * (gather(u.y, j, k) - uyi);
-        az += c * (gather(u.z, j, k) - uzi);
-        k += LANES;
+    for v in pair_vectors(&blk.j, blk.range(q)) {
+        let c = pair_coefficients(inp, blk, &v, i, wt);
+        ax += c * (v.gather(u.x) - uxi);
+        ay += c * (v.gather(u.y) - uyi);
+        az += c * (v.gather(u.z) - uzi);
     }
     let inv = if rhoi > 0.0 { inp.h * inp.h * inp.h / rhoi } else { 0.0 };
     [inv * sum(ax), inv * sum(ay), inv * sum(az)]
@@ -182,14 +178,11 @@ fn implicit_coefficients<W: PairWeight>(inp: &ViscosityInput, wt: &W, coef: &mut
             c.resize(blk.len(), 0.0);
             for (q, dg) in dg.iter_mut().enumerate() {
                 let i = b * BLOCK + q;
-                let r = blk.range(q);
                 let mut total = F::ZERO;
-                let mut k = r.start;
-                while k < r.end {
-                    let kij = pair_coefficients(inp, blk, k, i, wt);
-                    store(c, k, kij);
+                for v in pair_vectors(&blk.j, blk.range(q)) {
+                    let kij = pair_coefficients(inp, blk, &v, i, wt);
+                    v.store(c, kij);
                     total += kij;
-                    k += LANES;
                 }
                 *dg = inp.rest_density[i] + scale * sum(total);
             }
@@ -212,15 +205,11 @@ fn implicit_apply(inp: &ViscosityInput, coef: &[Vec<f32>], v: [&[f32]; 3], out: 
                 let i = b * BLOCK + q;
                 let (vxi, vyi, vzi) = (F::splat(v[0][i]), F::splat(v[1][i]), F::splat(v[2][i]));
                 let (mut sx, mut sy, mut sz) = (F::ZERO, F::ZERO, F::ZERO);
-                let r = blk.range(q);
-                let j = &blk.j[..r.end];
-                let mut k = r.start;
-                while k < r.end {
-                    let kij = load(c, k);
-                    sx += kij * (vxi - gather(v[0], j, k));
-                    sy += kij * (vyi - gather(v[1], j, k));
-                    sz += kij * (vzi - gather(v[2], j, k));
-                    k += LANES;
+                for pv in pair_vectors(&blk.j, blk.range(q)) {
+                    let kij = pv.load(c);
+                    sx += kij * (vxi - pv.gather(v[0]));
+                    sy += kij * (vyi - pv.gather(v[1]));
+                    sz += kij * (vzi - pv.gather(v[2]));
                 }
                 let rho = inp.rest_density[i];
                 ox[q] = rho * v[0][i] + scale * sum(sx);

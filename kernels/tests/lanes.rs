@@ -3,7 +3,7 @@
 //! read exactly `src[idx[k + l]]`, and must refuse an index past the end of
 //! `src` as the plain indexing does.
 
-use porosph_kernels::lanes::{gather, LANES};
+use porosph_kernels::lanes::{gather, pair_vectors, F, LANES};
 
 /// Indices from a fixed linear congruential sequence, every one below `n`,
 /// with the largest index `n - 1` in the last lane of one vector (the
@@ -57,4 +57,50 @@ fn gather_refuses_an_index_past_the_end() {
     let mut idx = vec![3u32; LANES];
     idx[LANES / 2] = 40;
     let _ = gather(&src, &idx, 0);
+}
+
+/// `pair_vectors` over unpadded pair ranges: every range length from 0 to
+/// 3 vectors, starting anywhere in the lists, also where the range ends at
+/// the lists' end (the masked path) and where other pairs follow (the
+/// whole-vector path). Each vector's lanes below `n` load, gather and
+/// store exactly the range's slots; the lanes past the range load 0,
+/// gather at the range's first target and leave the slots after the range
+/// untouched.
+#[test]
+fn pair_vectors_cover_the_range_and_mask_the_rest() {
+    let n = 5_000u32;
+    let src: Vec<f32> = (0..n).map(|i| 1.0 + i as f32).collect();
+    let total = 4 * LANES + 7;
+    let j = indices(n, total);
+    let vals: Vec<f32> = (0..total).map(|k| -(k as f32) - 0.5).collect();
+    for start in [0, 1, LANES - 1, LANES, 2 * LANES + 3] {
+        for len in 0..=(total - start).min(3 * LANES) {
+            let r = start..start + len;
+            let mut seen = Vec::new();
+            let mut out = vec![7.0f32; total];
+            for v in pair_vectors(&j, r.clone()) {
+                assert_eq!(v.k, r.start + seen.len(), "vectors in order, LANES apart");
+                assert!(v.n >= 1 && v.n <= LANES && v.k + v.n <= r.end);
+                let (ld, g, idx) = (v.load(&vals).to_array(), v.gather(&src).to_array(), v.indices());
+                for l in 0..LANES {
+                    if l < v.n {
+                        assert_eq!(ld[l].to_bits(), vals[v.k + l].to_bits());
+                        assert_eq!(idx[l], j[v.k + l]);
+                        assert_eq!(g[l].to_bits(), src[j[v.k + l] as usize].to_bits());
+                    } else {
+                        assert_eq!(ld[l].to_bits(), 0.0f32.to_bits(), "lane {l} past the range loads +0");
+                        assert_eq!(idx[l], j[r.start], "lane {l} past the range gathers at the first target");
+                        assert_eq!(g[l].to_bits(), src[j[r.start] as usize].to_bits());
+                    }
+                }
+                v.store(&mut out, F::from(std::array::from_fn::<f32, LANES, _>(|l| l as f32)));
+                seen.extend(v.k..v.k + v.n);
+            }
+            assert_eq!(seen, r.clone().collect::<Vec<_>>(), "start {start}, len {len}");
+            for (k, &o) in out.iter().enumerate() {
+                let want = if r.contains(&k) { ((k - r.start) % LANES) as f32 } else { 7.0 };
+                assert_eq!(o, want, "slot {k} after the stores (start {start}, len {len})");
+            }
+        }
+    }
 }

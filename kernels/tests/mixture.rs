@@ -8,7 +8,7 @@ use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::lanes::{gather, load, store, sum, F, LANES};
+use porosph_kernels::lanes::{pair_vectors, sum, F};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 use porosph_kernels::phase_transport::{correct, correction_sums, transport, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
@@ -349,15 +349,12 @@ fn reference_transport(ff: &PairLists, alpha: &[Vec<f32>], flux: &PhaseVel, dt: 
                 let i = b * BLOCK + q;
                 let (fxi, fyi, fzi) = (F::splat(f.x[i]), F::splat(f.y[i]), F::splat(f.z[i]));
                 let mut acc = F::ZERO;
-                let r = blk.range(q);
-                let mut p = r.start;
-                while p < r.end {
-                    let v = (gather(f.x, &blk.j, p) + fxi) * load(&blk.gx, p)
-                        + (gather(f.y, &blk.j, p) + fyi) * load(&blk.gy, p)
-                        + (gather(f.z, &blk.j, p) + fzi) * load(&blk.gz, p);
-                    store(out, p, v);
+                for pv in pair_vectors(&blk.j, blk.range(q)) {
+                    let v = (pv.gather(f.x) + fxi) * pv.load(&blk.gx)
+                        + (pv.gather(f.y) + fyi) * pv.load(&blk.gy)
+                        + (pv.gather(f.z) + fzi) * pv.load(&blk.gz);
+                    pv.store(out, v);
                     acc += v.max(F::ZERO);
-                    p += LANES;
                 }
                 let leaving = dt * sum(acc);
                 let a = alpha[k][i];
@@ -370,28 +367,22 @@ fn reference_transport(ff: &PairLists, alpha: &[Vec<f32>], flux: &PhaseVel, dt: 
         let mut lim = vec![1.0f32; blk.len()];
         for q in 0..blk.start.len() - 1 {
             let i = b * BLOCK + q;
-            let r = blk.range(q);
-            let mut p = r.start;
-            while p < r.end {
+            for pv in pair_vectors(&blk.j, blk.range(q)) {
                 let mut lam = F::splat(1.0);
                 for k in 0..np {
-                    let v = load(&phi[k][b], p);
-                    let from_j = Select::select(v.simd_lt(F::ZERO), gather(&lambda[k], &blk.j, p), F::splat(1.0));
+                    let v = pv.load(&phi[k][b]);
+                    let from_j = Select::select(v.simd_lt(F::ZERO), pv.gather(&lambda[k]), F::splat(1.0));
                     lam = lam.min(Select::select(v.simd_gt(F::ZERO), F::splat(lambda[k][i]), from_j));
                 }
-                store(&mut lim, p, lam);
-                p += LANES;
+                pv.store(&mut lim, lam);
             }
         }
         for k in 0..np {
             for q in 0..blk.start.len() - 1 {
                 let i = b * BLOCK + q;
                 let mut acc = F::ZERO;
-                let r = blk.range(q);
-                let mut p = r.start;
-                while p < r.end {
-                    acc += load(&phi[k][b], p) * load(&lim, p);
-                    p += LANES;
+                for pv in pair_vectors(&blk.j, blk.range(q)) {
+                    acc += pv.load(&phi[k][b]) * pv.load(&lim);
                 }
                 next[k][i] = f64::from(alpha[k][i]) - f64::from(dt) * f64::from(sum(acc));
             }

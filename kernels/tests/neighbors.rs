@@ -110,8 +110,8 @@ fn pairs_at_the_support_radius() {
 }
 
 /// The pair lists of `build_pairs`, as they are laid out (per query: the
-/// targets within H in ascending order, then padding to whole vectors with
-/// the first target and zero weights), against an O(n^2) scalar reference,
+/// targets within H in ascending order, the next query's right after, no
+/// padding), against an O(n^2) scalar reference,
 /// bit for bit: the same pairs in the same order, the same W and gradient
 /// bits. Random clouds, a jittered lattice (H = 2 d), a clump much denser
 /// than a cell, a NaN particle; query set = target set and a query set
@@ -120,7 +120,6 @@ fn pairs_at_the_support_radius() {
 #[test]
 fn pair_lists_match_brute_force_bit_for_bit() {
     use porosph_kernels::kernel::KernelShape;
-    use porosph_kernels::lanes::LANES;
     let h = 0.05;
     let mut rng = Lcg(11);
     let mut clouds: Vec<Vec<[f32; 3]>> = Vec::new();
@@ -192,20 +191,6 @@ fn pair_lists_match_brute_force_bit_for_bit() {
                             want.5.push((gr * dz).to_bits());
                         }
                     }
-                    // Padding: W and the gradient as for r = 0, times 0
-                    // (a negative W'/r at 0 gives -0.0 gradient bits).
-                    let pad = want.1.get(first).copied().unwrap_or(0);
-                    let (w0, g0) = match shape {
-                        KernelShape::CubicSpline => (kernel.cubic_spline_w(0.0), kernel.cubic_spline_grad_over_r(0.0)),
-                        KernelShape::WendlandC2 => (kernel.wendland_w(0.0), kernel.wendland_grad_over_r(0.0)),
-                    };
-                    let (w0, g0) = (w0 * 0.0, g0 * 0.0 * 0.0);
-                    let end = first + (want.1.len() - first).next_multiple_of(LANES);
-                    want.1.resize(end, pad);
-                    want.2.resize(end, w0.to_bits());
-                    want.3.resize(end, g0.to_bits());
-                    want.4.resize(end, g0.to_bits());
-                    want.5.resize(end, g0.to_bits());
                     want.0.push(want.1.len() - first);
                 }
                 assert_eq!(got.0, want.0, "pairs per query ({shape:?}, {} queries)", q.len());
@@ -214,7 +199,7 @@ fn pair_lists_match_brute_force_bit_for_bit() {
                 assert_eq!(got.3, want.3, "grad x bits ({shape:?})");
                 assert_eq!(got.4, want.4, "grad y bits ({shape:?})");
                 assert_eq!(got.5, want.5, "grad z bits ({shape:?})");
-                assert!(got.1.len() > 4 * q.len(), "the cloud has pairs");
+                assert!(got.1.len() > q.len(), "the cloud has pairs: {} for {} queries", got.1.len(), q.len());
             }
         }
     }

@@ -174,8 +174,7 @@ fn near_inner_fluid<'a>(fluid: &FluidStore, ff: &PairLists, arena: &'a Bump) -> 
     wet.par_iter_mut().enumerate().for_each(|(i, w)| *w = fluid.beta.iter().any(|b| b[i] > 0.0));
     // Marked from the wet particles' own pairs (few: the pool around a
     // sponge is dry), which the symmetric lists allow: j is i's neighbour
-    // if i is j's (the same distance test; a padding lane repeats a true
-    // neighbour). Scanning every particle's pairs for a wet one took about
+    // if i is j's (the same distance test). Scanning every particle's pairs for a wet one took about
     // 7 ms a step in the porous bench at 261k fluid particles (its porous
     // pass 33.7 -> 27.6 ms, bench/RESULTS.md).
     let active = arena.alloc_slice_fill_copy(n, false);
