@@ -369,6 +369,19 @@ mod imp {
     use super::{F, LANES};
     use std::arch::x86_64::*;
 
+    /// The largest of the 16 u32 in `a` and `b`.
+    #[inline(always)]
+    fn largest(a: __m256i, b: __m256i) -> u32 {
+        // SAFETY: register operations only (AVX2, which this module needs).
+        unsafe {
+            let m = _mm256_max_epu32(a, b);
+            let m = _mm_max_epu32(_mm256_extracti128_si256::<0>(m), _mm256_extracti128_si256::<1>(m));
+            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
+            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
+            _mm_cvtsi128_si32(m) as u32
+        }
+    }
+
     /// AVX2: two halves of 8 lanes, each with an all-ones lane mask where
     /// the lane holds a pair.
     #[derive(Clone, Copy)]
@@ -392,11 +405,7 @@ mod imp {
                     let ones = _mm256_set1_epi32(-1);
                     let a = _mm256_loadu_si256(j as *const __m256i);
                     let b = _mm256_loadu_si256(j.add(8) as *const __m256i);
-                    let m = _mm256_max_epu32(a, b);
-                    let m = _mm_max_epu32(_mm256_extracti128_si256::<0>(m), _mm256_extracti128_si256::<1>(m));
-                    let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
-                    let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
-                    return (Lanes { full: true, mask: [ones, ones], idx: [a, b] }, _mm_cvtsi128_si32(m) as u32);
+                    return (Lanes { full: true, mask: [ones, ones], idx: [a, b] }, largest(a, b));
                 }
                 let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
                 let nn = _mm256_set1_epi32(n as i32);
@@ -405,11 +414,7 @@ mod imp {
                 let f = _mm256_set1_epi32(fill as i32);
                 let a = _mm256_blendv_epi8(f, _mm256_maskload_epi32(j as *const i32, lo), lo);
                 let b = _mm256_blendv_epi8(f, _mm256_maskload_epi32(j.wrapping_add(8) as *const i32, hi), hi);
-                let m = _mm256_max_epu32(a, b);
-                let m = _mm_max_epu32(_mm256_extracti128_si256::<0>(m), _mm256_extracti128_si256::<1>(m));
-                let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
-                let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
-                (Lanes { full: false, mask: [lo, hi], idx: [a, b] }, _mm_cvtsi128_si32(m) as u32)
+                (Lanes { full: false, mask: [lo, hi], idx: [a, b] }, largest(a, b))
             }
         }
 
