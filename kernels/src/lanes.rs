@@ -93,13 +93,6 @@ pub fn load(s: &[f32], k: usize) -> F {
     F::from(*a)
 }
 
-/// Stores `v` to `s[k..k + LANES]`.
-#[inline(always)]
-pub fn store(s: &mut [f32], k: usize, v: F) {
-    let a: &mut [f32; LANES] = (&mut s[k..k + LANES]).try_into().expect("a whole vector");
-    *a = v.to_array();
-}
-
 /// Loads `s[k..k + LANES]`, zero-filling lanes past the end of `s`.
 #[inline(always)]
 pub fn load_partial(s: &[f32], k: usize) -> F {
@@ -110,56 +103,6 @@ pub fn load_partial(s: &[f32], k: usize) -> F {
         let n = s.len().saturating_sub(k);
         a[..n].copy_from_slice(&s[k..k + n]);
         F::from(a)
-    }
-}
-
-/// Gathers `src[idx[k + l]]` for the LANES lanes l (all of `idx[k..k + LANES]`
-/// must exist and be valid indices of `src`). One AVX-512 gather where the
-/// target has it.
-#[inline(always)]
-pub fn gather(src: &[f32], idx: &[u32], k: usize) -> F {
-    let ix: &[u32; LANES] = idx[k..k + LANES].try_into().expect("a whole vector");
-    #[cfg(target_feature = "avx512f")]
-    {
-        use std::arch::x86_64::{__m512, _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_reduce_max_epu32};
-        // SAFETY: the load reads the 16 u32 of `ix`; the gather reads
-        // src[ix[l]] only after checking that the largest index is in
-        // bounds; F and __m512 are both 16 f32 in 64 bytes.
-        unsafe {
-            let vi = _mm512_loadu_si512(ix.as_ptr() as *const _);
-            assert!((_mm512_reduce_max_epu32(vi) as usize) < src.len(), "gather index out of bounds");
-            let v = _mm512_i32gather_ps::<4>(vi, src.as_ptr());
-            std::mem::transmute::<__m512, F>(v)
-        }
-    }
-    #[cfg(all(target_feature = "avx2", not(target_feature = "avx512f")))]
-    {
-        use std::arch::x86_64::{
-            __m256, __m256i, _mm256_extracti128_si256, _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_max_epu32,
-            _mm_cvtsi128_si32, _mm_max_epu32, _mm_shuffle_epi32,
-        };
-        // SAFETY: the two loads read the 16 u32 of `ix`; the gathers read
-        // src[ix[l]] only after checking that the largest index is in
-        // bounds (as u32, so also below 2^31 for the gathers' i32 indices
-        // whenever src is shorter than that); F is 16 f32 in 64 bytes, two
-        // __m256 in lane order.
-        unsafe {
-            let lo = _mm256_loadu_si256(ix.as_ptr() as *const __m256i);
-            let hi = _mm256_loadu_si256(ix.as_ptr().add(8) as *const __m256i);
-            let m = _mm256_max_epu32(lo, hi);
-            let m = _mm_max_epu32(_mm256_extracti128_si256::<0>(m), _mm256_extracti128_si256::<1>(m));
-            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b01_00_11_10>(m));
-            let m = _mm_max_epu32(m, _mm_shuffle_epi32::<0b10_11_00_01>(m));
-            let largest = _mm_cvtsi128_si32(m) as u32 as usize;
-            assert!(largest < src.len() && src.len() <= i32::MAX as usize, "gather index out of bounds");
-            let a = _mm256_i32gather_ps::<4>(src.as_ptr(), lo);
-            let b = _mm256_i32gather_ps::<4>(src.as_ptr(), hi);
-            std::mem::transmute::<[__m256; 2], F>([a, b])
-        }
-    }
-    #[cfg(not(any(target_feature = "avx512f", target_feature = "avx2")))]
-    {
-        F::from(std::array::from_fn::<f32, LANES, _>(|l| src[ix[l] as usize]))
     }
 }
 

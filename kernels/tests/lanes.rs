@@ -1,9 +1,9 @@
-//! The lane helpers against plain indexing: `gather` (one AVX-512 gather,
-//! two AVX2 gathers, or sixteen loads, by the build's target features) must
-//! read exactly `src[idx[k + l]]`, and must refuse an index past the end of
-//! `src` as the plain indexing does.
+//! The lane helpers against plain indexing: a pair vector's `gather` (one
+//! AVX-512 gather, two AVX2 gathers, or sixteen loads, by the build's
+//! target features) must read exactly `src[j[k + l]]`, and must refuse an
+//! index past the end of `src` as the plain indexing does.
 
-use porosph_kernels::lanes::{gather, pair_vectors, F, LANES};
+use porosph_kernels::lanes::{pair_vectors, F, LANES};
 
 /// Indices from a fixed linear congruential sequence, every one below `n`,
 /// with the largest index `n - 1` in the last lane of one vector (the
@@ -35,17 +35,13 @@ fn gather_reads_the_indexed_values_bit_for_bit() {
         })
         .collect();
     let idx = indices(n, 64 * LANES);
-    for k in (0..idx.len()).step_by(LANES) {
-        let v = gather(&src, &idx, k).to_array();
-        for l in 0..LANES {
-            assert_eq!(v[l].to_bits(), src[idx[k + l] as usize].to_bits(), "vector at {k}, lane {l}");
-        }
-    }
-    // Unaligned starts read the same lanes.
-    for k in 1..LANES {
-        let v = gather(&src, &idx, k).to_array();
-        for l in 0..LANES {
-            assert_eq!(v[l].to_bits(), src[idx[k + l] as usize].to_bits());
+    // Aligned starts, then unaligned ones: the same lanes.
+    for start in 0..LANES {
+        for v in pair_vectors(&idx, start..idx.len()) {
+            let g = v.gather(&src).to_array();
+            for l in 0..v.n {
+                assert_eq!(g[l].to_bits(), src[idx[v.k + l] as usize].to_bits(), "vector at {}, lane {l}", v.k);
+            }
         }
     }
 }
@@ -56,7 +52,9 @@ fn gather_refuses_an_index_past_the_end() {
     let src = vec![1.0f32; 40];
     let mut idx = vec![3u32; LANES];
     idx[LANES / 2] = 40;
-    let _ = gather(&src, &idx, 0);
+    for v in pair_vectors(&idx, 0..LANES) {
+        let _ = v.gather(&src);
+    }
 }
 
 /// `pair_vectors` over unpadded pair ranges: every range length from 0 to
