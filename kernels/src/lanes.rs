@@ -214,7 +214,10 @@ impl PairVec {
         unsafe { self.imp.gather(src.as_ptr()) }
     }
 
-    /// Stores the first `n` lanes of `v` to `s[k..k + n]`.
+    /// Stores the first `n` lanes of `v` to `s[k..k + n]`. (A whole-vector
+    /// read-modify-write where the next query's slots follow was slower:
+    /// the 1 M dam break's neighbour pass 88-92 -> 93-96 ms, its loads
+    /// waiting on the previous vector's stores.)
     #[inline(always)]
     pub fn store(&self, s: &mut [f32], v: F) {
         assert!(self.k + self.n <= s.len(), "pair vector past the list");
@@ -243,13 +246,12 @@ mod imp {
 
     impl Lanes {
         /// # Safety
-        /// `j` is valid for reads of `n` <= LANES u32.
+        /// `j` is valid for reads of `avail` u32; `n` <= `avail`, LANES.
         #[inline(always)]
         pub unsafe fn new(j: *const u32, n: usize, avail: usize, fill: u32) -> (Self, u32) {
             let mask = if n >= LANES { 0xffff } else { ((1u32 << n) - 1) as __mmask16 };
-            // SAFETY: a whole vector is read where it has n = LANES pairs;
-            // else the masked load reads only the n lanes (no fault past
-            // them).
+            // SAFETY: a whole vector is read where `avail` has it; else the
+            // masked load reads only the n lanes (no fault past them).
             unsafe {
                 let idx = if n >= LANES {
                     _mm512_loadu_si512(j as *const _)
@@ -268,14 +270,11 @@ mod imp {
         /// `p` is valid for reads of the mask's lanes.
         #[inline(always)]
         pub unsafe fn load(&self, p: *const f32) -> F {
-            // A whole vector without the mask: with every load masked (or
-            // every load followed by a masked move), the 250k dam break's
-            // pressure solve took twice as long on AMD Zen 5; the masked
-            // load serves the partial vector at each query's end only.
-            unsafe {
-                let v = if self.mask == 0xffff { _mm512_loadu_ps(p) } else { _mm512_maskz_loadu_ps(self.mask, p) };
-                std::mem::transmute::<__m512, F>(v)
-            }
+            // Only for a partial vector at a list's end (`PairVec::load`):
+            // with every load masked (or every load followed by a masked
+            // move), the 250k dam break's pressure solve took twice as long
+            // on AMD Zen 5.
+            unsafe { std::mem::transmute::<__m512, F>(_mm512_maskz_loadu_ps(self.mask, p)) }
         }
 
         /// # Safety
