@@ -23,6 +23,7 @@ mod gpu_common;
 
 use porosph::backend::gpu::{DriftInput, DriftOutput, PorousDriftInput};
 use porosph::backend::GpuPasses;
+use porosph_kernels::band::{Band, BandVel, NONE};
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
@@ -53,7 +54,11 @@ struct Case {
     cell: f32,
     beta: Vec<Vec<f32>>,
     beta_f: Vec<f32>,
-    /// grad p^pore_fk and q_k,f, phase-major.
+    /// The fluid-solid band (`porosph_kernels::band`): slot per particle and
+    /// particle per slot.
+    band_at: Vec<u32>,
+    band_idx: Vec<u32>,
+    /// grad p^pore_fk and q_k,f per phase on the band.
     grad_pore: [Vec<f32>; 3],
     q: [Vec<f32>; 3],
 }
@@ -158,8 +163,24 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
     let beta_f = (0..n).map(|i| beta.iter().map(|b| b[i]).sum()).collect();
     // grad p^pore up to 1e5 Pa/m and q up to 1e-3 m/s (the soak of
     // tests/porous.rs: p0 = 2e4 Pa over a few cm, k_w/mu = 2e-8).
-    let grad_pore = std::array::from_fn(|_| (0..NP * n).map(|_| rng.range(-1e5, 1e5)).collect());
-    let q = std::array::from_fn(|_| (0..NP * n).map(|_| rng.range(-1e-3, 1e-3)).collect());
+    // On a band of about 60 % of the particles (0 elsewhere).
+    let band_at: Vec<u32> = {
+        let mut m = 0;
+        (0..n)
+            .map(|_| {
+                if rng.range(0.0, 1.0) < 0.6 {
+                    m += 1;
+                    m - 1
+                } else {
+                    NONE
+                }
+            })
+            .collect()
+    };
+    let band_idx: Vec<u32> = (0..n as u32).filter(|&i| band_at[i as usize] != NONE).collect();
+    let m = band_idx.len();
+    let grad_pore = std::array::from_fn(|_| (0..NP * m).map(|_| rng.range(-1e5, 1e5)).collect());
+    let q = std::array::from_fn(|_| (0..NP * m).map(|_| rng.range(-1e-3, 1e-3)).collect());
     Case {
         kernel,
         x,
@@ -176,6 +197,8 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
         cell,
         beta,
         beta_f,
+        band_at,
+        band_idx,
         grad_pore,
         q,
     }
@@ -188,6 +211,10 @@ const INNER_SIGMA: f32 = 2e-3;
 
 /// u_mk and F_k, phase-major, x y z.
 type Out = ([Vec<f32>; 3], [Vec<f32>; 3]);
+
+fn on_band<'a>(c: &'a Case, a: &'a [Vec<f32>; 3]) -> BandVel<'a> {
+    BandVel { band: Band { idx: &c.band_idx, at: &c.band_at }, x: &a[0], y: &a[1], z: &a[2] }
+}
 
 fn vel(a: &[Vec<f32>; 3]) -> Vel<'_> {
     Vel { x: &a[0], y: &a[1], z: &a[2] }
@@ -246,9 +273,7 @@ fn cpu_pass(
             let (mut v, mut w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
             drift::phase_velocity(&inp, &frac[k], phases[k], v.reborrow(), w.reborrow());
             if let Some((e, scale)) = extra {
-                let r = k * n..(k + 1) * n;
-                let e = Vel { x: &e[0][r.clone()], y: &e[1][r.clone()], z: &e[2][r] };
-                porous::add_phase_term(&frac[k], frac_f, e, scale, v, w);
+                porous::add_phase_term(&frac[k], frac_f, on_band(c, e), k, scale, v, w);
             }
         }
     }
@@ -311,11 +336,11 @@ fn gpu_run(
         phases: &c.phases,
         conservative,
         porous: porous.then(|| PorousDriftInput {
-            grad_pore: vel(&c.grad_pore),
+            grad_pore: on_band(c, &c.grad_pore),
             pore_drift: PORE_DRIFT,
             beta: &beta,
             beta_f: &c.beta_f,
-            q: vel(&c.q),
+            q: on_band(c, &c.q),
             inner_tau: INNER_TAU,
             inner_sigma: INNER_SIGMA,
             cell_volume: c.cell,

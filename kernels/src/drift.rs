@@ -76,6 +76,7 @@
 //! (Fick's law for equal sigma), also between two pure particles, where
 //! alpha_k u_mk would be 0.
 
+use crate::band::BandVel;
 use crate::blocks::BLOCK;
 use crate::lanes::{pair_vectors, sum, F};
 use crate::neighbors::{PairBlock, PairLists};
@@ -411,10 +412,10 @@ pub struct AdvectiveDrift<'a> {
     /// a^visc and a^p of this step (a = -(a^visc + a^p)), m/s^2.
     pub a_visc: Vel<'a>,
     pub a_p: Vel<'a>,
-    /// The porous term `scale` e_k, e_k per phase k at `[k n, (k + 1) n)`
-    /// of each component: P-Eq. 11's -phi grad p^pore_k, P-Eq. 12's
-    /// -tau' q_k ([`crate::porous::add_phase_term`]).
-    pub porous: Option<(Vel<'a>, f32)>,
+    /// The porous term `scale` e_k, e_k per phase on the fluid-solid band
+    /// (`crate::band`): P-Eq. 11's -phi grad p^pore_k, P-Eq. 12's -tau'
+    /// q_k ([`crate::porous::add_phase_term`]).
+    pub porous: Option<(BandVel<'a>, f32)>,
 }
 
 /// The largest advective drift speed max_k |u_mk - (its diffusion part)|
@@ -453,8 +454,8 @@ pub fn max_advective_speed(inp: &AdvectiveDrift) -> f32 {
             let c = &inp.phases[k];
             let mut t = a.map(|a| c.tau * c.density * a);
             if let Some((e, scale)) = inp.porous {
-                for (t, e) in t.iter_mut().zip([e.x, e.y, e.z]) {
-                    *t += scale * e[k * n + i];
+                for (t, e) in t.iter_mut().zip(e.get(k, i)) {
+                    *t += scale * e;
                 }
             }
             t

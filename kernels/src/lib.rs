@@ -3,6 +3,7 @@
 //! blocks ([`blocks::BLOCK`]) run under rayon, with neighbour loops in SIMD
 //! lanes ([`lanes::F`]); results do not depend on the number of threads.
 
+pub mod band;
 pub mod blocks;
 pub mod chebyshev;
 pub mod drift;

@@ -29,6 +29,7 @@
 //! W_fs / N_f, sum_s h^3 phi_sk = sum_f h^3 beta_fk exactly, so the
 //! absorbed volume seen by the solids is the fluid's inner volume.
 
+use crate::band::{Band, BandField, BandVel};
 use crate::blocks::BLOCK;
 use crate::neighbors::PairLists;
 use crate::phases::{join, split};
@@ -134,30 +135,28 @@ pub fn drained_boundary(
         });
 }
 
-/// Pass 9, P-Eqs. 14 and 18: per fluid particle, the capillary normal
+/// Pass 9, P-Eqs. 14 and 18: per fluid particle of the band (`out` per
+/// slot; 0 elsewhere, `crate::band`), the capillary normal
 /// sum_s psi_s V_s grad W_fs over the fluid-solid pairs `fs` (psi_s the
 /// capillary strength of the solid's region): psi times the unnormalised
 /// colour gradient of the porous solids, which points into the solid and
 /// fades inside it (PHYSICS.md §8.9). a^cap = (sum_k beta_k) times this.
-pub fn capillary_normal(fs: &PairLists, vol: &[f32], psi: &[f32], out: VelMut) {
-    out.x
-        .par_chunks_mut(BLOCK)
-        .zip(out.y.par_chunks_mut(BLOCK))
-        .zip(out.z.par_chunks_mut(BLOCK))
-        .zip(fs.used().par_iter())
-        .for_each(|(((cx, cy), cz), blk)| {
-            for q in 0..cx.len() {
-                let mut c = [0.0f32; 3];
-                for p in blk.range(q) {
-                    let s = blk.j[p] as usize;
-                    let vp = vol[s] * psi[s];
-                    c[0] += vp * blk.gx[p];
-                    c[1] += vp * blk.gy[p];
-                    c[2] += vp * blk.gz[p];
-                }
-                (cx[q], cy[q], cz[q]) = (c[0], c[1], c[2]);
+pub fn capillary_normal(fs: &PairLists, band: Band, vol: &[f32], psi: &[f32], out: VelMut) {
+    let blocks = fs.used();
+    out.x.par_iter_mut().zip(out.y.par_iter_mut()).zip(out.z.par_iter_mut()).zip(band.idx.par_iter()).for_each(
+        |(((cx, cy), cz), &f)| {
+            let (blk, q) = (&blocks[f as usize / BLOCK], f as usize % BLOCK);
+            let mut c = [0.0f32; 3];
+            for p in blk.range(q) {
+                let s = blk.j[p] as usize;
+                let vp = vol[s] * psi[s];
+                c[0] += vp * blk.gx[p];
+                c[1] += vp * blk.gy[p];
+                c[2] += vp * blk.gz[p];
             }
-        });
+            (*cx, *cy, *cz) = (c[0], c[1], c[2]);
+        },
+    );
 }
 
 /// Solid-side inputs of [`fluid_phase_terms`] for one phase k, per solid
@@ -190,7 +189,9 @@ pub struct FluidPhase<'a> {
     pub inv_n: &'a [f32],
 }
 
-/// Outputs of [`fluid_phase_terms`] for one phase k, per fluid particle.
+/// Outputs of [`fluid_phase_terms`] for one phase k, per slot of the
+/// fluid-solid band (`crate::band`; every other fluid particle has no solid
+/// neighbour, and every term is 0 there).
 pub struct FluidPhaseOut<'a> {
     /// u_betak,f = sum_s u_betak,s W_fs / N_f (P-Eq. 16), m/s.
     pub u_beta: VelMut<'a>,
@@ -221,54 +222,47 @@ pub struct FluidPhaseOut<'a> {
     pub gamma: &'a mut [f32],
 }
 
-/// Pass 9 for phase k over the fluid-solid pairs `fs` (module doc).
-pub fn fluid_phase_terms(fs: &PairLists, solid: SolidPhase, fluid: FluidPhase, out: FluidPhaseOut) {
+/// Pass 9 for phase k over the fluid-solid pairs `fs` (module doc), for
+/// the particles of `band`.
+pub fn fluid_phase_terms(fs: &PairLists, band: Band, solid: SolidPhase, fluid: FluidPhase, out: FluidPhaseOut) {
     let FluidPhaseOut { u_beta, q, grad_pore, gamma } = out;
+    let blocks = fs.used();
     u_beta
         .x
-        .par_chunks_mut(BLOCK)
-        .zip(u_beta.y.par_chunks_mut(BLOCK))
-        .zip(u_beta.z.par_chunks_mut(BLOCK))
-        .zip(q.x.par_chunks_mut(BLOCK).zip(q.y.par_chunks_mut(BLOCK)).zip(q.z.par_chunks_mut(BLOCK)))
-        .zip(
-            grad_pore
-                .x
-                .par_chunks_mut(BLOCK)
-                .zip(grad_pore.y.par_chunks_mut(BLOCK))
-                .zip(grad_pore.z.par_chunks_mut(BLOCK))
-                .zip(gamma.par_chunks_mut(BLOCK)),
-        )
-        .zip(fs.used().par_iter())
-        .enumerate()
-        .for_each(|(b, (((((ubx, uby), ubz), ((qx, qy), qz)), (((gx, gy), gz), ga)), blk))| {
-            for l in 0..ubx.len() {
-                let f = b * BLOCK + l;
-                let (inv_n, af) = (fluid.inv_n[f], fluid.alpha[f]);
-                let (mut ub, mut qf, mut gp, mut rate) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3], 0.0f32);
-                for p in blk.range(l) {
-                    let s = blk.j[p] as usize;
-                    let v = solid.vol[s];
-                    if v == 0.0 {
-                        continue;
-                    }
-                    let wn = blk.w[p] * inv_n;
-                    let g = [blk.gx[p], blk.gy[p], blk.gz[p]];
-                    let dp = solid.pore_pressure[s] - solid.outer_pressure[s];
-                    let g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
-                    rate -= v * v * solid.conductivity[s] * (af + solid.phi[s]) * dp * g2;
-                    let us = [solid.u_beta.x[s], solid.u_beta.y[s], solid.u_beta.z[s]];
-                    let qs = [solid.q.x[s], solid.q.y[s], solid.q.z[s]];
-                    for c in 0..3 {
-                        ub[c] += wn * us[c];
-                        qf[c] += wn * qs[c];
-                        gp[c] += v * dp * g[c];
-                    }
+        .par_iter_mut()
+        .zip(u_beta.y.par_iter_mut())
+        .zip(u_beta.z.par_iter_mut())
+        .zip(q.x.par_iter_mut().zip(q.y.par_iter_mut()).zip(q.z.par_iter_mut()))
+        .zip(grad_pore.x.par_iter_mut().zip(grad_pore.y.par_iter_mut()).zip(grad_pore.z.par_iter_mut()))
+        .zip(gamma.par_iter_mut().zip(band.idx.par_iter()))
+        .for_each(|(((((ubx, uby), ubz), ((qx, qy), qz)), ((gx, gy), gz)), (ga, &f))| {
+            let f = f as usize;
+            let (blk, l) = (&blocks[f / BLOCK], f % BLOCK);
+            let (inv_n, af) = (fluid.inv_n[f], fluid.alpha[f]);
+            let (mut ub, mut qf, mut gp, mut rate) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3], 0.0f32);
+            for p in blk.range(l) {
+                let s = blk.j[p] as usize;
+                let v = solid.vol[s];
+                if v == 0.0 {
+                    continue;
                 }
-                (ubx[l], uby[l], ubz[l]) = (ub[0], ub[1], ub[2]);
-                (qx[l], qy[l], qz[l]) = (qf[0], qf[1], qf[2]);
-                (gx[l], gy[l], gz[l]) = (gp[0], gp[1], gp[2]);
-                ga[l] = rate;
+                let wn = blk.w[p] * inv_n;
+                let g = [blk.gx[p], blk.gy[p], blk.gz[p]];
+                let dp = solid.pore_pressure[s] - solid.outer_pressure[s];
+                let g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+                rate -= v * v * solid.conductivity[s] * (af + solid.phi[s]) * dp * g2;
+                let us = [solid.u_beta.x[s], solid.u_beta.y[s], solid.u_beta.z[s]];
+                let qs = [solid.q.x[s], solid.q.y[s], solid.q.z[s]];
+                for c in 0..3 {
+                    ub[c] += wn * us[c];
+                    qf[c] += wn * qs[c];
+                    gp[c] += v * dp * g[c];
+                }
             }
+            (*ubx, *uby, *ubz) = (ub[0], ub[1], ub[2]);
+            (*qx, *qy, *qz) = (qf[0], qf[1], qf[2]);
+            (*gx, *gy, *gz) = (gp[0], gp[1], gp[2]);
+            *ga = rate;
         });
 }
 
@@ -279,8 +273,9 @@ pub fn fluid_phase_terms(fs: &PairLists, solid: SolidPhase, fluid: FluidPhase, o
 /// e = grad p^pore_fk and scale = -phi this is the porous term of P-Eq. 11,
 /// with e = q_k,f and scale = -tau' the Darcy term of P-Eq. 12: after
 /// `drift::mixture_velocity` and `drift::drift_velocity` both appear as
-/// e_k - sum_k' c_k' e_k'.
-pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: Vel, scale: f32, v: VelMut, w: VelMut) {
+/// e_k - sum_k' c_k' e_k'. `e` is phase k's of a field on the fluid-solid
+/// band (`crate::band`).
+pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: BandVel, k: usize, scale: f32, v: VelMut, w: VelMut) {
     v.x.par_chunks_mut(BLOCK)
         .zip(v.y.par_chunks_mut(BLOCK))
         .zip(v.z.par_chunks_mut(BLOCK))
@@ -292,7 +287,7 @@ pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: Vel, scale: f32, v: Vel
                 if frac_f[i] < crate::phases::MIN_ALPHA_F {
                     continue;
                 }
-                let t = [scale * e.x[i], scale * e.y[i], scale * e.z[i]];
+                let t = e.get(k, i).map(|e| scale * e);
                 let a = frac_k[i];
                 vx[q] += t[0];
                 vy[q] += t[1];
@@ -309,8 +304,8 @@ pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: Vel, scale: f32, v: Vel
 /// `out` = u_mk - (t_k - sum_k' c_k' t_k'), t_k = `scale` e_k, c_k the mass
 /// fractions alpha_k rho_k / sum_k' alpha_k' rho_k'; where `frac_f` <
 /// `crate::phases::MIN_ALPHA_F` or the particle has no mass the drift has
-/// no such part and `out` = u_mk. Phase k of `e`, `u` and `out` at
-/// `[k n, (k + 1) n)` of each component.
+/// no such part and `out` = u_mk. Phase k of `u` and `out` at
+/// `[k n, (k + 1) n)` of each component; `e` on the fluid-solid band.
 ///
 /// What it is for: the drift momentum term a^Dm (`drift_momentum`) of the
 /// phases' buoyancy slip and diffusion, without the momentum flux of the
@@ -334,7 +329,7 @@ pub fn without_phase_term(
     frac: &[&[f32]],
     frac_f: &[f32],
     density: &[f32],
-    e: Vel,
+    e: BandVel,
     scale: f32,
     u: Vel,
     out: VelMut,
@@ -355,11 +350,11 @@ pub fn without_phase_term(
                 let mut m = [0.0f32; 3];
                 if frac_f[i] >= crate::phases::MIN_ALPHA_F && mass > 0.0 {
                     for (k, rho) in density.iter().enumerate() {
-                        let r = k * n + i;
                         let c = frac[k][i] * rho;
-                        m[0] += c * (scale * e.x[r]);
-                        m[1] += c * (scale * e.y[r]);
-                        m[2] += c * (scale * e.z[r]);
+                        let e = e.get(k, i);
+                        m[0] += c * (scale * e[0]);
+                        m[1] += c * (scale * e[1]);
+                        m[2] += c * (scale * e[2]);
                     }
                     m = m.map(|m| m / mass);
                 }
@@ -367,15 +362,15 @@ pub fn without_phase_term(
             }
         });
     let mean = Vel { x: &*mean.x, y: &*mean.y, z: &*mean.z };
-    for (o, (u, (e, m))) in [out.x, out.y, out.z]
-        .into_iter()
-        .zip([u.x, u.y, u.z].into_iter().zip([e.x, e.y, e.z].into_iter().zip([mean.x, mean.y, mean.z])))
+    for (c, (o, (u, m))) in
+        [out.x, out.y, out.z].into_iter().zip([u.x, u.y, u.z].into_iter().zip([mean.x, mean.y, mean.z])).enumerate()
     {
         o.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
             for (q, o) in o.iter_mut().enumerate() {
                 let r = b * BLOCK + q;
-                let i = r % n;
-                *o = if frac_f[i] >= crate::phases::MIN_ALPHA_F { u[r] - (scale * e[r] - m[i]) } else { u[r] };
+                let (k, i) = (r / n, r % n);
+                *o =
+                    if frac_f[i] >= crate::phases::MIN_ALPHA_F { u[r] - (scale * e.get(k, i)[c] - m[i]) } else { u[r] };
             }
         });
     }
@@ -392,11 +387,11 @@ pub const MIN_EXCHANGE_FRACTION: f32 = 0.001;
 /// [`MIN_EXCHANGE_FRACTION`] would be left. alpha_k + beta_k is unchanged
 /// up to f64 rounding, so every phase's mass is conserved (the fractions
 /// are the f64 ones of the step's transport, `phases::join`).
-pub fn exchange(gamma: &[f32], dt: f32, alpha: &mut [f64], beta: &mut [f64]) {
+pub fn exchange(gamma: BandField, k: usize, dt: f32, alpha: &mut [f64], beta: &mut [f64]) {
     let min = f64::from(MIN_EXCHANGE_FRACTION);
     alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {
         for q in 0..a.len() {
-            let x = f64::from(dt * gamma[b * BLOCK + q]);
+            let x = f64::from(dt * gamma.get(k, b * BLOCK + q));
             let moved = if x > 0.0 {
                 let src = a[q].max(0.0);
                 if src - x < min {
@@ -500,11 +495,14 @@ mod tests {
 
     #[test]
     fn exchange_conserves_each_particle_and_clamps() {
-        let gamma = [10.0, -10.0, 500.0, -500.0, 0.0];
+        // Particle 4 is outside the band: Gamma 0 there.
+        let arena = bumpalo::Bump::new();
+        let band = Band::new(&arena, 5, |i| i < 4);
+        let gamma = BandField { band, v: &[10.0, -10.0, 500.0, -500.0] };
         let mut a = vec![0.5, 0.5, 0.4, 0.5, 0.3];
         let mut b = vec![0.5, 0.5, 0.6, 0.2, 0.7];
         let (a0, b0) = (a.clone(), b.clone());
-        exchange(&gamma, 1e-3, &mut a, &mut b);
+        exchange(gamma, 0, 1e-3, &mut a, &mut b);
         for i in 0..5 {
             assert!((a[i] + b[i] - a0[i] - b0[i]).abs() < 1e-7, "particle {i}");
         }

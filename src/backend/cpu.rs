@@ -80,8 +80,15 @@ impl Passes for Cpu {
             let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
             for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
                 let (v, w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
-                let e = pd.grad_pore.range(k * n..(k + 1) * n);
-                porosph_kernels::porous::add_phase_term(inp.alpha[k], inp.alpha_f, e, -pd.pore_drift, v, w);
+                porosph_kernels::porous::add_phase_term(
+                    inp.alpha[k],
+                    inp.alpha_f,
+                    pd.grad_pore,
+                    k,
+                    -pd.pore_drift,
+                    v,
+                    w,
+                );
             }
         }
         sums.drift_velocities(inp.alpha, inp.alpha_f, [&mut *ux, &mut *uy, &mut *uz], [&mut *fx, &mut *fy, &mut *fz]);
@@ -106,8 +113,7 @@ impl Passes for Cpu {
                 let r = k * n..(k + 1) * n;
                 let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
                 let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                let e = pd.q.range(r);
-                porosph_kernels::porous::add_phase_term(beta_k, pd.beta_f, e, -pd.inner_tau, v, w);
+                porosph_kernels::porous::add_phase_term(beta_k, pd.beta_f, pd.q, k, -pd.inner_tau, v, w);
             }
             sums.drift_velocities(pd.beta, pd.beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
             max_speed =

@@ -10,6 +10,7 @@
 
 use super::BackendKind;
 use bumpalo::Bump;
+use porosph_kernels::band::BandVel;
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::Rows;
 use porosph_kernels::kernel::Kernel;
@@ -337,16 +338,17 @@ pub struct DriftInput<'a> {
 /// 12) is the same pass over the inner fractions beta with sigma', no phase
 /// pressure, -tau' q_k,f, and every volume h^3.
 pub struct PorousDriftInput<'a> {
-    /// grad p^pore_fk, phase-major (phase k at `[k n, (k + 1) n)`), Pa/m.
-    pub grad_pore: Vel<'a>,
+    /// grad p^pore_fk per phase on the fluid-solid band
+    /// (`porosph_kernels::band`), Pa/m.
+    pub grad_pore: BandVel<'a>,
     /// phi of P-Eq. 11, m^2/(Pa s).
     pub pore_drift: f32,
     /// beta_k per phase.
     pub beta: &'a [&'a [f32]],
     /// beta_f = sum_k beta_k.
     pub beta_f: &'a [f32],
-    /// q_k,f, phase-major, m/s.
-    pub q: Vel<'a>,
+    /// q_k,f per phase on the fluid-solid band, m/s.
+    pub q: BandVel<'a>,
     /// tau' of P-Eq. 12.
     pub inner_tau: f32,
     /// sigma' of P-Eq. 12, m^2/s.

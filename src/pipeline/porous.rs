@@ -26,6 +26,7 @@ use super::timing::Pass;
 use super::{PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
+use porosph_kernels::band::{Band, BandField, BandVel};
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::iisph::{self};
 use porosph_kernels::neighbors::{update_sums, PairLists};
@@ -197,24 +198,25 @@ pub(super) fn exchange(cx: &mut StepCtx, terms: &PoreTerms, n: usize, alpha_next
     let tm = &mut cx.tm;
     tm.time(Pass::PhaseTransport, || {
         for (k, (a, b)) in alpha_next.chunks_mut(n).zip(beta_next.chunks_mut(n)).enumerate() {
-            porosph_kernels::porous::exchange(&terms.gamma[k * n..(k + 1) * n], dt, a, b);
+            porosph_kernels::porous::exchange(terms.gamma, k, dt, a, b);
         }
     });
 }
 
-/// The fluid-side porous fields of one step, per fluid particle (per-phase
-/// fields flat: phase k at `[k n, (k + 1) n)`).
+/// The fluid-side porous fields of one step, on the band of the fluid
+/// particles with a solid neighbour (`porosph_kernels::band`: 0 at every
+/// other fluid particle, where no pair adds to them).
 pub(super) struct PoreTerms<'a> {
     /// sum_s psi_s V_s grad W_fs: a^cap = (sum_k beta_k) times this (P-Eq. 18).
-    pub capillary: [&'a [f32]; 3],
+    pub capillary: BandVel<'a>,
     /// sum_k beta_k rho_k u_betak,f (u_betak,f of P-Eq. 16), kg/(m^2 s).
-    pub inner_flux: [&'a [f32]; 3],
+    pub inner_flux: BandVel<'a>,
     /// q_k,f (P-Eq. 17), m/s.
-    pub q: Vel<'a>,
+    pub q: BandVel<'a>,
     /// grad p^pore_fk (P-Eq. 20), Pa/m.
-    pub grad_pore: Vel<'a>,
+    pub grad_pore: BandVel<'a>,
     /// Gamma_k (P-Eq. 22), 1/s.
-    pub gamma: &'a [f32],
+    pub gamma: BandField<'a>,
     /// eta p^pore per solid particle (store order), Pa, for the stress
     /// (P-Eq. 5); `None` where no porous solid swells.
     pub pore_stress: Option<&'a [f32]>,
@@ -324,20 +326,24 @@ fn pore_state<'a>(
     };
     let per_solid = tmp.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
 
-    // Pass 9 on the fluid.
-    let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, n);
+    // Pass 9 on the fluid, on the band of the fluid particles with a solid
+    // neighbour (every term is 0 elsewhere).
+    let fs = pairs.fs.used();
+    let band = Band::new(arena, n, |i| !fs[i / BLOCK].range(i % BLOCK).is_empty());
+    let m = band.len();
+    let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, m);
     let psi = tmp.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
-    capillary_normal(&pairs.fs, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
-    let flat = |arena: &'a Bump| [zeros(arena, np * n), zeros(arena, np * n), zeros(arena, np * n)];
+    capillary_normal(&pairs.fs, band, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
+    let flat = |arena: &'a Bump| [zeros(arena, np * m), zeros(arena, np * m), zeros(arena, np * m)];
     // u_betak,f of one phase at a time (pass scratch), summed into the
     // inner mass flux sum_k beta_k rho_k u_betak,f, all that a^pore reads.
-    let [ubx, uby, ubz] = [zeros(tmp, n), zeros(tmp, n), zeros(tmp, n)];
-    let mut u_in = [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
+    let [ubx, uby, ubz] = [zeros(tmp, m), zeros(tmp, m), zeros(tmp, m)];
+    let mut u_in = [zeros(arena, m), zeros(arena, m), zeros(arena, m)];
     let [qfx, qfy, qfz] = flat(arena);
     let [gpx, gpy, gpz] = flat(arena);
-    let gamma = zeros(arena, np * n);
+    let gamma = zeros(arena, np * m);
     for (k, &(q_s, u_s, p0k, cond)) in per_solid.iter().enumerate() {
-        let r = k * n..(k + 1) * n;
+        let r = k * m..(k + 1) * m;
         let solid = SolidPhase {
             vol,
             pore_pressure: pore,
@@ -354,11 +360,11 @@ fn pore_state<'a>(
             grad_pore: VelMut { x: &mut gpx[r.clone()], y: &mut gpy[r.clone()], z: &mut gpz[r.clone()] },
             gamma: &mut gamma[r],
         };
-        fluid_phase_terms(&pairs.fs, solid, fl, out);
+        fluid_phase_terms(&pairs.fs, band, solid, fl, out);
         let (rho, beta, [sx, sy, sz]) = (p.phase_density[k], &fluid.beta[k], &mut u_in);
-        (&mut **sx, &mut **sy, &mut **sz).into_par_iter().enumerate().for_each(|(i, (x, y, z))| {
-            let m = beta[i] * rho;
-            (*x, *y, *z) = (*x + m * ubx[i], *y + m * uby[i], *z + m * ubz[i]);
+        (&mut **sx, &mut **sy, &mut **sz).into_par_iter().enumerate().for_each(|(s, (x, y, z))| {
+            let m = beta[band.idx[s] as usize] * rho;
+            (*x, *y, *z) = (*x + m * ubx[s], *y + m * uby[s], *z + m * ubz[s]);
         });
     }
 
@@ -370,12 +376,13 @@ fn pore_state<'a>(
         }
         &*out
     });
+    let [ix, iy, iz] = u_in;
     PoreTerms {
-        capillary: [cx, cy, cz],
-        inner_flux: u_in.map(|u| &*u),
-        q: Vel { x: qfx, y: qfy, z: qfz },
-        grad_pore: Vel { x: gpx, y: gpy, z: gpz },
-        gamma,
+        capillary: BandVel { band, x: cx, y: cy, z: cz },
+        inner_flux: BandVel { band, x: ix, y: iy, z: iz },
+        q: BandVel { band, x: qfx, y: qfy, z: qfz },
+        grad_pore: BandVel { band, x: gpx, y: gpy, z: gpz },
+        gamma: BandField { band, v: gamma },
         pore_stress,
         max_darcy_speed: max_darcy,
     }
@@ -412,11 +419,11 @@ pub(super) fn accelerations(
                     bsum += bk;
                     bmass += bk * p.phase_density[k];
                 }
-                let u_in = [terms.inner_flux[0][i], terms.inner_flux[1][i], terms.inner_flux[2][i]];
+                let u_in = terms.inner_flux.get(0, i);
                 if bsum <= 0.0 {
                     continue;
                 }
-                let cap = [bsum * terms.capillary[0][i], bsum * terms.capillary[1][i], bsum * terms.capillary[2][i]];
+                let cap = terms.capillary.get(0, i).map(|c| bsum * c);
                 let a = [&mut ax[q], &mut ay[q], &mut az[q]];
                 let us = [u_star.x[i], u_star.y[i], u_star.z[i]];
                 let rho = rest_density[i];

@@ -16,7 +16,8 @@ use super::ranges::RangesGpu;
 use super::{GpuContext, GpuError};
 pub use crate::backend::passes::{DriftInput, DriftOutput, PorousDriftInput};
 use bytemuck::{Pod, Zeroable};
-use porosph_kernels::soa::{Vel, VelMut};
+use porosph_kernels::band::BandVel;
+use porosph_kernels::soa::VelMut;
 
 /// Phases the shader's parameter block has room for.
 pub const MAX_PHASES: usize = 8;
@@ -148,7 +149,7 @@ impl DriftGpu {
         self.acc.clear();
         self.acc.extend((0..n).map(|i| [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i]), 0.0]));
         if let Some(pd) = &inp.porous {
-            pack_vec(&mut self.extra, pd.grad_pore, n * np);
+            pack_band(&mut self.extra, pd.grad_pore, n, np);
         }
 
         let (n64, np64) = (n as u64, np as u64);
@@ -232,7 +233,7 @@ impl DriftGpu {
             }
             ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             pack(&mut self.alpha, pd.beta, n);
-            pack_vec(&mut self.extra, pd.q, n * np);
+            pack_band(&mut self.extra, pd.q, n, np);
             let b = &self.bufs;
             b[ALPHA].upload(ctx, &self.alpha);
             b[ALPHA_F].upload(ctx, &pd.beta_f[..n]);
@@ -309,7 +310,12 @@ fn pack(out: &mut Vec<f32>, phases: &[&[f32]], n: usize) {
 }
 
 /// Three flat component arrays of `len` values into xyz0 vectors.
-fn pack_vec(out: &mut Vec<[f32; 4]>, c: Vel, len: usize) {
+/// A per-phase field on the fluid-solid band as the shaders read it:
+/// phase k of fluid particle i at `k n + i`, 0 outside the band.
+fn pack_band(out: &mut Vec<[f32; 4]>, c: BandVel, n: usize, np: usize) {
     out.clear();
-    out.extend((0..len).map(|i| [c.x[i], c.y[i], c.z[i], 0.0]));
+    out.extend((0..n * np).map(|r| {
+        let [x, y, z] = c.get(r / n, r % n);
+        [x, y, z, 0.0]
+    }));
 }
