@@ -18,6 +18,10 @@ pub struct ViscosityInput<'a> {
     pub rest_density: &'a [f32],
     /// Mixture viscosity mu_m, Pa s.
     pub mu: &'a [f32],
+    /// Whether every entry of `mu` is the same (one phase): mu_j is then
+    /// mu_i, read without a gather per pair (the viscosity pass's gathers
+    /// set its cost; bench/RESULTS.md, "One viscosity").
+    pub mu_uniform: bool,
     /// Particle spacing h, m (regulariser 0.01 h^2).
     pub h: f32,
     pub gravity: [f32; 3],
@@ -73,7 +77,9 @@ fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, v: &P
     let r2 = dx * dx + dy * dy + dz * dz;
     // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
     let xg = -(dx * v.load(&blk.gx) + dy * v.load(&blk.gy) + dz * v.load(&blk.gz));
-    wt.apply((F::splat(inp.mu[i]) + v.gather(inp.mu)) * xg / (r2 + F::splat(eps)), i, v)
+    let mu_i = F::splat(inp.mu[i]);
+    let mu_j = if inp.mu_uniform { mu_i } else { v.gather(inp.mu) };
+    wt.apply((mu_i + mu_j) * xg / (r2 + F::splat(eps)), i, v)
 }
 
 /// a^visc_i (P-Eq. 23) of particle `i`, the query `q` of block `blk`.

@@ -272,7 +272,8 @@ fn drift_has_no_mass_weighted_mean_and_fluxes_add_up_to_zero() {
 }
 
 /// With one phase of fraction 1 the phase pair weight is exactly 1, so the
-/// mixture viscosity is bitwise the one-phase viscosity (PHYSICS.md §5).
+/// mixture viscosity is bitwise the one-phase viscosity (PHYSICS.md §5);
+/// and reading a uniform mu without its gather changes nothing.
 #[test]
 fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
     let mut rng = Lcg(3);
@@ -289,6 +290,7 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
         u: Vel { x: &u[0], y: &u[1], z: &u[2] },
         rest_density: &rho,
         mu: &mu,
+        mu_uniform: false,
         h: 1.0,
         gravity: [0.0, -9.81, 0.0],
         dt: 0.01,
@@ -307,8 +309,15 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
         let [vx, vy, vz] = &mut av;
         predict_velocity_mixture(&inp, &alpha, VelMut { x: bx, y: by, z: bz }, VelMut { x: vx, y: vy, z: vz });
     }
+    // The same viscosity read without the mu gather (`mu_uniform`).
+    let mut u1: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    {
+        let [x, y, z] = &mut u1;
+        predict_velocity(&ViscosityInput { mu_uniform: true, ..inp }, x, y, z);
+    }
     for c in 0..3 {
         assert!(a[c].iter().zip(&b[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}");
+        assert!(a[c].iter().zip(&u1[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}, uniform mu");
     }
     assert!(av[0].iter().any(|&x| x != 0.0));
     assert_eq!(n.div_ceil(BLOCK), lat.ff.used().len());

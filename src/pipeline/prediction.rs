@@ -49,6 +49,7 @@ pub(super) fn predict<'a>(
             u: Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz },
             rest_density: ph.rest_density,
             mu: ph.mu,
+            mu_uniform: ph.mu.par_iter().all(|&m| m == ph.mu[0]),
             h: p.h,
             gravity: p.gravity,
             dt,
