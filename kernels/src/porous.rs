@@ -304,8 +304,9 @@ pub fn add_phase_term(frac_k: &[f32], frac_f: &[f32], e: BandVel, k: usize, scal
 /// `out` = u_mk - (t_k - sum_k' c_k' t_k'), t_k = `scale` e_k, c_k the mass
 /// fractions alpha_k rho_k / sum_k' alpha_k' rho_k'; where `frac_f` <
 /// `crate::phases::MIN_ALPHA_F` or the particle has no mass the drift has
-/// no such part and `out` = u_mk. Phase k of `u` and `out` at
-/// `[k n, (k + 1) n)` of each component; `e` on the fluid-solid band.
+/// no such part and `out` = u_mk. In place: `u` holds u_mk and becomes
+/// `out`; phase k at `[k n, (k + 1) n)` of each component; `e` on the
+/// fluid-solid band, `mean` scratch of the band's length.
 ///
 /// What it is for: the drift momentum term a^Dm (`drift_momentum`) of the
 /// phases' buoyancy slip and diffusion, without the momentum flux of the
@@ -331,46 +332,41 @@ pub fn without_phase_term(
     density: &[f32],
     e: BandVel,
     scale: f32,
-    u: Vel,
-    out: VelMut,
+    u: VelMut,
     mean: VelMut,
 ) {
     let n = frac_f.len();
     let np = frac.len();
-    // sum_k' c_k' t_k' per particle.
-    mean.x
-        .par_chunks_mut(BLOCK)
-        .zip(mean.y.par_chunks_mut(BLOCK))
-        .zip(mean.z.par_chunks_mut(BLOCK))
-        .enumerate()
-        .for_each(|(b, ((mx, my), mz))| {
-            for q in 0..mx.len() {
-                let i = b * BLOCK + q;
-                let mass: f32 = (0..np).map(|k| frac[k][i] * density[k]).sum();
-                let mut m = [0.0f32; 3];
-                if frac_f[i] >= crate::phases::MIN_ALPHA_F && mass > 0.0 {
-                    for (k, rho) in density.iter().enumerate() {
-                        let c = frac[k][i] * rho;
-                        let e = e.get(k, i);
-                        m[0] += c * (scale * e[0]);
-                        m[1] += c * (scale * e[1]);
-                        m[2] += c * (scale * e[2]);
-                    }
-                    m = m.map(|m| m / mass);
+    // sum_k' c_k' t_k' per band slot; outside the band every e_k is 0 and
+    // so is this sum (+0.0, as the sum over the zero terms gives).
+    let band = e.band;
+    mean.x.par_iter_mut().zip(mean.y.par_iter_mut()).zip(mean.z.par_iter_mut()).zip(band.idx.par_iter()).for_each(
+        |(((mx, my), mz), &i)| {
+            let i = i as usize;
+            let mass: f32 = (0..np).map(|k| frac[k][i] * density[k]).sum();
+            let mut m = [0.0f32; 3];
+            if frac_f[i] >= crate::phases::MIN_ALPHA_F && mass > 0.0 {
+                for (k, rho) in density.iter().enumerate() {
+                    let c = frac[k][i] * rho;
+                    let e = e.get(k, i);
+                    m[0] += c * (scale * e[0]);
+                    m[1] += c * (scale * e[1]);
+                    m[2] += c * (scale * e[2]);
                 }
-                (mx[q], my[q], mz[q]) = (m[0], m[1], m[2]);
+                m = m.map(|m| m / mass);
             }
-        });
-    let mean = Vel { x: &*mean.x, y: &*mean.y, z: &*mean.z };
-    for (c, (o, (u, m))) in
-        [out.x, out.y, out.z].into_iter().zip([u.x, u.y, u.z].into_iter().zip([mean.x, mean.y, mean.z])).enumerate()
-    {
+            (*mx, *my, *mz) = (m[0], m[1], m[2]);
+        },
+    );
+    for (c, (o, m)) in [u.x, u.y, u.z].into_iter().zip([&*mean.x, &*mean.y, &*mean.z]).enumerate() {
         o.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
             for (q, o) in o.iter_mut().enumerate() {
                 let r = b * BLOCK + q;
                 let (k, i) = (r / n, r % n);
-                *o =
-                    if frac_f[i] >= crate::phases::MIN_ALPHA_F { u[r] - (scale * e.get(k, i)[c] - m[i]) } else { u[r] };
+                if frac_f[i] >= crate::phases::MIN_ALPHA_F {
+                    let m = band.slot(i).map_or(0.0, |s| m[s]);
+                    *o -= scale * e.get(k, i)[c] - m;
+                }
             }
         });
     }

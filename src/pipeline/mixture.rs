@@ -83,12 +83,11 @@ pub(super) fn drift<'a>(
     let np = fluid.alpha.len();
     let porous = terms.is_some();
     // With pass 11's porous form (`without_phase_term`) the drift
-    // velocities of P-Eq. 11 are only its input: pass scratch; else kept.
+    // velocities of P-Eq. 11 become its form in place.
     let momentum = terms.filter(|_| p.pore_drift != 0.0 && p.drift_momentum_sign != 0.0);
     let tmp = cx.scratch.fresh();
     let alpha = per_phase(arena, &fluid.alpha);
-    let (nk, ns) = if momentum.is_some() { (0, np * n) } else { (np * n, 0) };
-    let (mut u_kept, mut u_input) = (zeros3(arena, nk), zeros3(tmp, ns));
+    let mut u = zeros3(arena, np * n);
     let mut f = zeros3(arena, np * n);
     let ni = if porous { np * n } else { 0 };
     // The inner drift velocities are only the inner fluxes' input.
@@ -136,8 +135,7 @@ pub(super) fn drift<'a>(
             ff: pairs.ff,
             ffb: pairs.ffb.filter(|_| porous),
         };
-        let u = if momentum.is_some() { u_input.reborrow() } else { u_kept.reborrow() };
-        let out = DriftOutput { u, f: f.reborrow() };
+        let out = DriftOutput { u: u.reborrow(), f: f.reborrow() };
         let inner = porous.then_some(DriftOutput { u: bu.reborrow(), f: bf.reborrow() });
         backend.drift(&prob, out, inner, tmp)
     });
@@ -168,26 +166,21 @@ pub(super) fn drift<'a>(
             drift::max_advective_speed(&outer).max(inner.map_or(0.0, |i| drift::max_advective_speed(&i)))
         })
     };
-    let u_momentum = match momentum {
-        Some(t) => cx.tm.time(Pass::DriftMomentum, || {
-            let (mut out, mut mean) = (zeros3(arena, np * n), zeros3(tmp, n));
-            let density = &p.phase_density;
+    if let Some(t) = momentum {
+        cx.tm.time(Pass::DriftMomentum, || {
             porosph_kernels::porous::without_phase_term(
                 alpha,
                 ph.alpha_f,
-                density,
+                &p.phase_density,
                 t.grad_pore,
                 -p.pore_drift,
-                u_input.into_view(),
-                out.reborrow(),
-                mean.reborrow(),
+                u.reborrow(),
+                zeros3(tmp, t.grad_pore.band.len()),
             );
-            out.into_view()
-        }),
-        None => u_kept.into_view(),
-    };
+        });
+    }
     Drift {
-        u: PhaseVel::split(arena, u_momentum, n),
+        u: PhaseVel::split(arena, u.into_view(), n),
         flux: PhaseVel::split(arena, f.into_view(), n),
         inner_flux: porous.then(|| PhaseVel::split(arena, bf.into_view(), n)),
         max_speed: report.max_speed,
