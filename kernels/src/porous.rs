@@ -382,7 +382,9 @@ pub const MIN_EXCHANGE_FRACTION: f32 = 0.001;
 /// at most what the source holds, and all of it where less than
 /// [`MIN_EXCHANGE_FRACTION`] would be left. alpha_k + beta_k is unchanged
 /// up to f64 rounding, so every phase's mass is conserved (the fractions
-/// are the f64 ones of the step's transport, `phases::join`).
+/// are the f64 ones of the step's transport, `phases::join`). Gamma_k is
+/// phase k's of `gamma`, on the fluid-solid band (0 elsewhere: x = 0
+/// moves nothing, as before the band).
 pub fn exchange(gamma: BandField, k: usize, dt: f32, alpha: &mut [f64], beta: &mut [f64]) {
     let min = f64::from(MIN_EXCHANGE_FRACTION);
     alpha.par_chunks_mut(BLOCK).zip(beta.par_chunks_mut(BLOCK)).enumerate().for_each(|(b, (a, be))| {

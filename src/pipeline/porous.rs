@@ -363,8 +363,8 @@ fn pore_state<'a>(
         fluid_phase_terms(&pairs.fs, band, solid, fl, out);
         let (rho, beta, [sx, sy, sz]) = (p.phase_density[k], &fluid.beta[k], &mut u_in);
         (&mut **sx, &mut **sy, &mut **sz).into_par_iter().enumerate().for_each(|(s, (x, y, z))| {
-            let m = beta[band.idx[s] as usize] * rho;
-            (*x, *y, *z) = (*x + m * ubx[s], *y + m * uby[s], *z + m * ubz[s]);
+            let mass = beta[band.idx[s] as usize] * rho;
+            (*x, *y, *z) = (*x + mass * ubx[s], *y + mass * uby[s], *z + mass * ubz[s]);
         });
     }
 
