@@ -1,8 +1,9 @@
 //! The end of a run in a few lines a user can read: simulated time and
 //! steps, the time step (mean, least, and which term of the rule held it),
 //! the wall time per simulated second and the particle-steps per second
-//! (fluid and solid), the pressure solve's mean iterations, and with two
-//! or more phases how much each phase's mass changed.
+//! (fluid and solid), the pressure solve's mean iterations, the process's
+//! peak resident memory (what a cluster job must ask for), and with two or
+//! more phases how much each phase's mass changed.
 
 use crate::pipeline::{DtLimit, Simulation, StepStats};
 use std::fmt;
@@ -38,6 +39,17 @@ pub struct RunSummary {
     /// Per phase: its name and (mass at the end - mass at the start) /
     /// mass at the start (NaN if it had no mass).
     pub mass_change: Vec<(String, f64)>,
+    /// The process's peak resident memory, bytes (`VmHWM` of
+    /// /proc/self/status; `None` where the system has no such file).
+    pub peak_memory: Option<u64>,
+}
+
+/// The process's peak resident set size so far, bytes (Linux `VmHWM`).
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
 
 /// Tallies the steps of a run as it goes.
@@ -96,6 +108,7 @@ impl Tally {
             .zip(self.masses.iter().zip(sim.phase_masses()))
             .map(|(p, (&m0, m1))| (p.name.clone(), if m0 > 0.0 { (m1 - m0) / m0 } else { f64::NAN }))
             .collect();
+        s.peak_memory = peak_resident_bytes();
         self.summary
     }
 }
@@ -161,6 +174,15 @@ impl fmt::Display for RunSummary {
             "\nporosph:   pressure solve: {:.1} iterations per step (mean)",
             self.iterations as f64 / self.steps as f64
         )?;
+        if let Some(b) = self.peak_memory {
+            let particles = (self.fluid_particles + self.solid_particles).max(1);
+            write!(
+                f,
+                "\nporosph:   memory: peak {:.1} MB resident ({:.0} B per fluid + solid particle)",
+                b as f64 / 1e6,
+                b as f64 / particles as f64
+            )?;
+        }
         if self.mass_change.len() > 1 {
             let m: Vec<String> = self.mass_change.iter().map(|(n, c)| format!("{n} {c:+.2e}")).collect();
             write!(f, "\nporosph:   mass change over the run (relative): {}", m.join(", "))?;
