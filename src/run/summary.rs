@@ -45,7 +45,7 @@ pub struct RunSummary {
 }
 
 /// The process's peak resident set size so far, bytes (Linux `VmHWM`).
-pub fn peak_resident_bytes() -> Option<u64> {
+fn peak_resident_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

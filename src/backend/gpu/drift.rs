@@ -309,7 +309,6 @@ fn pack(out: &mut Vec<f32>, phases: &[&[f32]], n: usize) {
     }
 }
 
-/// Three flat component arrays of `len` values into xyz0 vectors.
 /// A per-phase field on the fluid-solid band as the shaders read it:
 /// phase k of fluid particle i at `k n + i`, 0 outside the band.
 fn pack_band(out: &mut Vec<[f32; 4]>, c: BandVel, n: usize, np: usize) {
