@@ -236,7 +236,7 @@ fn cpu_solve(c: &Case, s: SolveSettings) -> Solved {
     let e = loop {
         let (cur, cur_b) = (p.clone(), p_b.clone());
         let [x, y, z] = &mut ap;
-        iisph::pressure_acceleration(&c.ff, &c.fb, None, &c.vm, &p, &p_wall, VelMut { x, y, z });
+        iisph::pressure_acceleration(&c.ff, &c.fb, None, &c.vm, &p, &p_wall, VelMut { x, y, z }, None);
         let a = Vel { x: &ap[0], y: &ap[1], z: &ap[2] };
         iisph::fluid_jacobi(&c.ff, &c.fb, None, a, Rows { source: &c.src, diag: &c.diag }, jac, &mut p, &mut err);
         iisph::wall_jacobi(&c.bf, a, None, Rows { source: &c.src_b, diag: &c.diag_b }, jac, &mut p_b);
@@ -257,7 +257,7 @@ fn cpu_solve(c: &Case, s: SolveSettings) -> Solved {
         }
     };
     let [x, y, z] = &mut ap;
-    iisph::pressure_acceleration(&c.ff, &c.fb, None, &c.vm, &p, &p_wall, VelMut { x, y, z });
+    iisph::pressure_acceleration(&c.ff, &c.fb, None, &c.vm, &p, &p_wall, VelMut { x, y, z }, None);
     Solved { p, ap, p_wall, iterations: it, error: e }
 }
 

@@ -17,7 +17,7 @@
 //! g_ij = Vbar_ij grad W_ij with Vbar_ij = 2 V_i V_j / (V_i + V_j).
 
 use crate::blocks::BLOCK;
-use crate::lanes::{pair_vectors, sum, F};
+use crate::lanes::{pair_vectors, sum, Field3, Packed, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::iter::Either;
@@ -460,7 +460,9 @@ pub fn wall_setup(bf: &mut PairLists, rows: WallRows, dt: f32, source: &mut [f32
 /// Pressure acceleration, P-Eq. 27 with the factor 2 restored:
 /// a^p_f = -(V_f/m_f) sum_j Vbar_fj (p_f + p_j) grad W_fj over fluid, wall
 /// and solid neighbours (`p_b` is the full wall pressure array; `fs` holds
-/// the solid pressures).
+/// the solid pressures). With `packed`, also written there, for the
+/// Jacobi sweeps' reads ([`Field3`]).
+#[allow(clippy::too_many_arguments)]
 pub fn pressure_acceleration(
     ff: &PairLists,
     fb: &PairLists,
@@ -469,17 +471,22 @@ pub fn pressure_acceleration(
     p_f: &[f32],
     p_b: &[f32],
     out: VelMut,
+    packed: Option<&mut [Packed]>,
 ) {
     let nb = ff.used().len();
     let p_s = fs.map_or(&[][..], |f| f.values);
+    let packed = match packed {
+        Some(pk) => Either::Left(pk.par_chunks_mut(BLOCK).map(Some)),
+        None => Either::Right((0..nb).into_par_iter().map(|_| None)),
+    };
     out.x
         .par_chunks_mut(BLOCK)
         .zip(out.y.par_chunks_mut(BLOCK))
         .zip(out.z.par_chunks_mut(BLOCK))
         .zip(ff.used().par_iter().zip(fb.used().par_iter()))
-        .zip(opt_blocks(fs.map(|f| f.pairs), nb))
+        .zip(opt_blocks(fs.map(|f| f.pairs), nb).zip(packed))
         .enumerate()
-        .for_each(|(b, ((((ox, oy), oz), (bf, bb)), bs))| {
+        .for_each(|(b, ((((ox, oy), oz), (bf, bb)), (bs, mut pk)))| {
             for q in 0..ox.len() {
                 let i = b * BLOCK + q;
                 let pi = F::splat(p_f[i]);
@@ -494,6 +501,9 @@ pub fn pressure_acceleration(
                 ox[q] = c * sum(sx);
                 oy[q] = c * sum(sy);
                 oz[q] = c * sum(sz);
+                if let Some(pk) = pk.as_deref_mut() {
+                    pk[q] = [ox[q], oy[q], oz[q], 0.0];
+                }
             }
         });
 }
@@ -502,11 +512,10 @@ pub fn pressure_acceleration(
 /// lane: the (A p) term of a Jacobi row (P-Eq. 28) over one pair list, with
 /// `ai` the row's own a^p (zero for a wall) and `a` the neighbours'.
 #[inline(always)]
-pub(crate) fn add_relative_accel(acc: &mut F, blk: &PairBlock, r: std::ops::Range<usize>, ai: [F; 3], a: Vel) {
+pub(crate) fn add_relative_accel(acc: &mut F, blk: &PairBlock, r: std::ops::Range<usize>, ai: [F; 3], a: impl Field3) {
     for v in pair_vectors(&blk.j, r) {
-        *acc += (ai[0] - v.gather(a.x)) * v.load(&blk.gx)
-            + (ai[1] - v.gather(a.y)) * v.load(&blk.gy)
-            + (ai[2] - v.gather(a.z)) * v.load(&blk.gz);
+        let [ax, ay, az] = a.gather3(&v);
+        *acc += (ai[0] - ax) * v.load(&blk.gx) + (ai[1] - ay) * v.load(&blk.gy) + (ai[2] - az) * v.load(&blk.gz);
     }
 }
 
@@ -652,7 +661,7 @@ pub fn fluid_jacobi(
     ff: &PairLists,
     fb: &PairLists,
     fs: Option<(&PairLists, Vel)>,
-    ap: Vel,
+    ap: impl Field3,
     rows: Rows,
     jac: Jacobi,
     p: &mut [f32],
@@ -674,7 +683,7 @@ pub fn fluid_jacobi(
                     *e = 0.0;
                     continue;
                 }
-                let (axi, ayi, azi) = (F::splat(ap.x[i]), F::splat(ap.y[i]), F::splat(ap.z[i]));
+                let [axi, ayi, azi] = ap.at(i).map(F::splat);
                 let mut acc = F::ZERO;
                 add_relative_accel(&mut acc, bf, bf.range(q), [axi, ayi, azi], ap);
                 for v in pair_vectors(&bb.j, bb.range(q)) {
@@ -694,7 +703,14 @@ pub fn fluid_jacobi(
 /// (Ap)_b = -dt^2 sum_j Vbar (a^p_j).grad W_bj over the fluid neighbours
 /// and, with `solids` (the walls' solid pairs and the solids' a^p_s), the
 /// solid ones (a wall has a^p_b = 0), then as [`fluid_jacobi`].
-pub fn wall_jacobi(bf: &PairLists, ap: Vel, solids: Option<(&PairLists, Vel)>, rows: Rows, jac: Jacobi, p: &mut [f32]) {
+pub fn wall_jacobi(
+    bf: &PairLists,
+    ap: impl Field3,
+    solids: Option<(&PairLists, Vel)>,
+    rows: Rows,
+    jac: Jacobi,
+    p: &mut [f32],
+) {
     let dt2 = jac.dt * jac.dt;
     let nb = bf.used().len();
     let a_s = solids.map(|s| s.1);

@@ -2,6 +2,7 @@
 //! serve both scalar (`f32`) and SIMD ([`F`] = `wide::f32x16`) code; a test
 //! checks the SIMD form against the scalar form lane by lane.
 
+use crate::soa::Vel;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// Number of f32 lanes in [`F`]: 16 (one AVX-512 register where the build's
@@ -128,6 +129,44 @@ pub fn pair_vectors(j: &[u32], r: std::ops::Range<usize>) -> PairVectors<'_> {
     PairVectors { j, k: r.start, end: r.end, fill }
 }
 
+/// A three-component field packed 16 bytes a particle, `[x, y, z, 0]`, for
+/// passes that read all three components of every neighbour
+/// ([`PairVec::gather3`]).
+pub type Packed = [f32; 4];
+
+/// A three-component field that a pass reads at its pairs' targets, as
+/// three arrays ([`Vel`]: three gathers) or packed (`&[Packed]`: one load
+/// a lane); both give the same values.
+pub trait Field3: Copy + Send + Sync {
+    /// The components at the vector's target indices.
+    fn gather3(self, v: &PairVec) -> [F; 3];
+    /// The components of entry `i`.
+    fn at(self, i: usize) -> [f32; 3];
+}
+
+impl Field3 for Vel<'_> {
+    #[inline(always)]
+    fn gather3(self, v: &PairVec) -> [F; 3] {
+        [v.gather(self.x), v.gather(self.y), v.gather(self.z)]
+    }
+    #[inline(always)]
+    fn at(self, i: usize) -> [f32; 3] {
+        [self.x[i], self.y[i], self.z[i]]
+    }
+}
+
+impl Field3 for &[Packed] {
+    #[inline(always)]
+    fn gather3(self, v: &PairVec) -> [F; 3] {
+        v.gather3(self)
+    }
+    #[inline(always)]
+    fn at(self, i: usize) -> [f32; 3] {
+        let [x, y, z, _] = self[i];
+        [x, y, z]
+    }
+}
+
 /// TAIL[n]: all bits set in the first n lanes, 0 in the others.
 static TAIL: [F; LANES + 1] = {
     let mut t = [[0u32; LANES]; LANES + 1];
@@ -214,6 +253,20 @@ impl PairVec {
         unsafe { self.imp.gather(src.as_ptr()) }
     }
 
+    /// `src[j]` of a packed three-component field ([`Packed`]) for the
+    /// vector's target indices: the three components, each as
+    /// [`PairVec::gather`] of its own array would give them (lanes past
+    /// `n`: at the query's first target), from one 16-byte load a lane
+    /// instead of three gathered elements (bench/RESULTS.md, "The Jacobi
+    /// sweep's a^p packed").
+    #[inline(always)]
+    pub fn gather3(&self, src: &[Packed]) -> [F; 3] {
+        assert!((self.max as usize) < src.len(), "gather index out of bounds");
+        // SAFETY: every lane's index is at most `max` (checked); an entry
+        // is 4 f32.
+        unsafe { self.imp.gather3(src.as_ptr() as *const f32) }
+    }
+
     /// Stores the first `n` lanes of `v` to `s[k..k + n]`. (A whole-vector
     /// read-modify-write where the next query's slots follow was slower:
     /// the 1 M dam break's neighbour pass 88-92 -> 93-96 ms, its loads
@@ -295,6 +348,35 @@ mod imp {
                 } else {
                     _mm512_mask_storeu_ps(p, self.mask, v)
                 }
+            }
+        }
+
+        /// # Safety
+        /// `src` is valid for reads of 4 f32 at 4 times every index.
+        #[inline(always)]
+        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
+            let j = self.indices();
+            // SAFETY: the caller's; register operations otherwise.
+            unsafe {
+                let at = |l: usize| _mm_loadu_ps(src.add(4 * j[l] as usize));
+                // Row m holds lanes m, m + 4, m + 8, m + 12, one a 128-bit
+                // quarter, so that the 4x4 transposes below put lane l's
+                // components at lane l.
+                let row = |m: usize| {
+                    let r = _mm512_castps128_ps512(at(m));
+                    let r = _mm512_insertf32x4::<1>(r, at(m + 4));
+                    let r = _mm512_insertf32x4::<2>(r, at(m + 8));
+                    _mm512_insertf32x4::<3>(r, at(m + 12))
+                };
+                let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                let (t0, t1) = (_mm512_unpacklo_ps(r0, r1), _mm512_unpackhi_ps(r0, r1));
+                let (t2, t3) = (_mm512_unpacklo_ps(r2, r3), _mm512_unpackhi_ps(r2, r3));
+                [
+                    _mm512_shuffle_ps::<0x44>(t0, t2),
+                    _mm512_shuffle_ps::<0xEE>(t0, t2),
+                    _mm512_shuffle_ps::<0x44>(t1, t3),
+                ]
+                .map(|v| std::mem::transmute::<__m512, F>(v))
             }
         }
 
@@ -401,6 +483,33 @@ mod imp {
             }
         }
 
+        /// # Safety
+        /// `src` is valid for reads of 4 f32 at 4 times every index.
+        #[inline(always)]
+        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
+            let j = self.indices();
+            // SAFETY: the caller's; register operations otherwise.
+            unsafe {
+                let at = |l: usize| _mm_loadu_ps(src.add(4 * j[l] as usize));
+                // Per half of 8 lanes, row m holds lanes m and m + 4 (one a
+                // 128-bit half), so that the 4x4 transposes put lane l's
+                // components at lane l.
+                let half = |h: usize| {
+                    let row = |m: usize| _mm256_set_m128(at(8 * h + m + 4), at(8 * h + m));
+                    let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                    let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+                    let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+                    [
+                        _mm256_shuffle_ps::<0x44>(t0, t2),
+                        _mm256_shuffle_ps::<0xEE>(t0, t2),
+                        _mm256_shuffle_ps::<0x44>(t1, t3),
+                    ]
+                };
+                let (a, b) = (half(0), half(1));
+                [0, 1, 2].map(|c| std::mem::transmute::<[__m256; 2], F>([a[c], b[c]]))
+            }
+        }
+
         #[inline(always)]
         pub fn indices(&self) -> [u32; LANES] {
             // SAFETY: 16 u32 in 64 bytes either way.
@@ -451,6 +560,13 @@ mod imp {
             for (l, x) in a.iter().enumerate().take(self.n) {
                 unsafe { p.add(l).write(*x) };
             }
+        }
+
+        /// # Safety
+        /// `src` is valid for reads of 4 f32 at 4 times every index.
+        #[inline(always)]
+        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
+            [0, 1, 2].map(|c| F::from(self.idx.map(|i| unsafe { src.add(4 * i as usize + c).read() })))
         }
 
         #[inline(always)]

@@ -30,7 +30,7 @@
 
 use crate::blocks::BLOCK;
 use crate::iisph::{add_relative_accel, scale_pairs, weighted_sum, Jacobi, Rows};
-use crate::lanes::{pair_vectors, sum, F};
+use crate::lanes::{pair_vectors, sum, Field3, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
@@ -348,7 +348,15 @@ pub fn solid_force(
 /// r_s = S_s - (Ap)_s, p_s <- max(0, p_s + omega r_s / a_ss). Writes
 /// max(-r_s, 0) (the predicted compression) to `err`.
 #[allow(clippy::too_many_arguments)]
-pub fn solid_jacobi(nb: SolidNeighbours, a_s: Vel, a_f: Vel, rows: Rows, jac: Jacobi, p: &mut [f32], err: &mut [f32]) {
+pub fn solid_jacobi(
+    nb: SolidNeighbours,
+    a_s: Vel,
+    a_f: impl Field3,
+    rows: Rows,
+    jac: Jacobi,
+    p: &mut [f32],
+    err: &mut [f32],
+) {
     let dt2 = jac.dt * jac.dt;
     p.par_chunks_mut(BLOCK)
         .zip(err.par_chunks_mut(BLOCK))

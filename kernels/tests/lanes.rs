@@ -3,7 +3,7 @@
 //! target features) must read exactly `src[j[k + l]]`, and must refuse an
 //! index past the end of `src` as the plain indexing does.
 
-use porosph_kernels::lanes::{pair_vectors, F, LANES};
+use porosph_kernels::lanes::{pair_vectors, Packed, F, LANES};
 
 /// Indices from a fixed linear congruential sequence, every one below `n`,
 /// with the largest index `n - 1` in the last lane of one vector (the
@@ -43,6 +43,45 @@ fn gather_reads_the_indexed_values_bit_for_bit() {
                 assert_eq!(g[l].to_bits(), src[idx[v.k + l] as usize].to_bits(), "vector at {}, lane {l}", v.k);
             }
         }
+    }
+}
+
+/// `gather3` of a packed field (one 16-byte load a lane and a transpose,
+/// by the build's target features) gives what three `gather`s of the
+/// component arrays give, bit for bit, in every lane: whole vectors and
+/// partial ones of every length (lanes past the range at the first
+/// target), at aligned and unaligned starts.
+#[test]
+fn gather3_of_a_packed_field_is_three_gathers() {
+    let n = 20_011u32;
+    let comp = |c: u32| -> Vec<f32> { (0..n).map(|i| f32::from_bits(0x3f80_0000 ^ (i * 2_654_435_761 + c))).collect() };
+    let (x, y, z) = (comp(0), comp(1), comp(2));
+    let packed: Vec<Packed> = (0..n as usize).map(|i| [x[i], y[i], z[i], f32::NAN]).collect();
+    let idx = indices(n, 8 * LANES);
+    for start in 0..LANES {
+        for len in [0, 1, 5, LANES - 1, LANES, LANES + 3, 3 * LANES, idx.len() - start] {
+            for v in pair_vectors(&idx, start..start + len) {
+                let [a, b, c] = v.gather3(&packed);
+                for (got, arr) in [(a, &x), (b, &y), (c, &z)] {
+                    let want = v.gather(arr).to_array();
+                    let got = got.to_array();
+                    for l in 0..LANES {
+                        assert_eq!(got[l].to_bits(), want[l].to_bits(), "start {start}, len {len}, lane {l}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+#[should_panic]
+fn gather3_refuses_an_index_past_the_end() {
+    let src = vec![[1.0f32; 4]; 40];
+    let mut idx = vec![3u32; LANES];
+    idx[LANES / 2] = 40;
+    for v in pair_vectors(&idx, 0..LANES) {
+        let _ = v.gather3(&src);
     }
 }
 

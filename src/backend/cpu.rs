@@ -159,6 +159,8 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
     let err_s = zeros(arena, ns);
     let parts = arena.alloc_slice_fill_copy(nblocks(n.max(ns)), 0.0f64);
     let (fx, fy, fz) = (zeros(arena, ns), zeros(arena, ns), zeros(arena, ns));
+    // a^p packed for the sweeps' reads at the pairs' targets.
+    let packed = arena.alloc_slice_fill_copy(n, [0.0f32; 4]);
     let solid_rows_active = match &sys.solids {
         Some(sol) => sum_f64(ns, parts, |i| (sol.rows.diag[i] != 0.0) as u32 as f64).max(1.0),
         None => 1.0,
@@ -179,13 +181,13 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         }
         let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
         let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
-        iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
+        iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out, Some(&mut *packed));
         if let (Some(sol), Some(r)) = (&sys.solids, response.as_mut()) {
             let f = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
             solid_rows::solid_force(sol.solid, p_s, p, p_wall, sys.vol, sol.vol, f);
             r.respond(Vel { x: fx, y: fy, z: fz }, accel.reborrow(), false);
         }
-        let ap = Vel { x: apx, y: apy, z: apz };
+        let ap = &*packed;
         let jac = Jacobi { dt: s.dt, omega };
         let a_s = Vel { x: &*accel.x, y: &*accel.y, z: &*accel.z };
         let fs = fs_pairs.map(|pairs| (pairs, a_s));
@@ -232,7 +234,7 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
     report.iterations = it;
     let out = VelMut { x: &mut *apx, y: &mut *apy, z: &mut *apz };
     let fs = fs_pairs.map(|pairs| SolidPairs { pairs, values: &*p_s });
-    iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out);
+    iisph::pressure_acceleration(sys.ff, sys.fb, fs, sys.vm, p, p_wall, out, None);
     if let (Some(sol), Some(r)) = (&sys.solids, response.as_mut()) {
         let f = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
         solid_rows::solid_force(sol.solid, p_s, p, p_wall, sys.vol, sol.vol, f);
