@@ -192,11 +192,18 @@ pub fn compute_keys(x: &[f32], y: &[f32], z: &[f32], inv_cell: f32, keys: &mut [
 /// The permutation that sorts `keys` ascending, ties by index (so it is
 /// unique): `perm[new] = old`. `scratch` is reused between calls.
 pub fn sort_permutation(keys: &[u64], scratch: &mut Vec<(u64, u32)>, perm: &mut Vec<u32>) {
-    scratch.clear();
-    scratch.extend(keys.iter().enumerate().map(|(i, &k)| (k, i as u32)));
-    scratch.par_sort_unstable();
-    perm.clear();
-    perm.extend(scratch.iter().map(|&(_, i)| i));
+    scratch.resize(keys.len(), (0, 0));
+    perm.resize(keys.len(), 0);
+    sort_permutation_into(keys, scratch, perm);
+}
+
+/// [`sort_permutation`] into slices of the keys' length: `sorted` gets the
+/// (key, index) pairs in ascending order, `perm` the indices.
+pub fn sort_permutation_into(keys: &[u64], sorted: &mut [(u64, u32)], perm: &mut [u32]) {
+    assert!(sorted.len() == keys.len() && perm.len() == keys.len(), "sort buffers of the keys' length");
+    sorted.par_iter_mut().zip(keys.par_iter()).enumerate().for_each(|(i, (s, &k))| *s = (k, i as u32));
+    sorted.par_sort_unstable();
+    perm.par_iter_mut().zip(sorted.par_iter()).for_each(|(p, &(_, i))| *p = i);
 }
 
 /// Finds, for every query point, all target points with |x_q - x_t| < H

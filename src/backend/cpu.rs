@@ -14,7 +14,7 @@ use porosph_kernels::chebyshev;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, Jacobi, SolidPairs};
-use porosph_kernels::neighbors::{compute_keys, sort_permutation};
+use porosph_kernels::neighbors::{compute_keys, sort_permutation_into};
 use porosph_kernels::phases::{PhaseConstants, PhaseVel};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows;
@@ -29,17 +29,9 @@ impl Passes for Cpu {
         BackendKind::Cpu
     }
 
-    fn sort(
-        &mut self,
-        fluid: Vel,
-        inv_cell: f32,
-        keys: &mut Vec<u64>,
-        sort: &mut Vec<(u64, u32)>,
-        perm: &mut Vec<u32>,
-    ) -> f64 {
-        keys.resize(fluid.x.len(), 0);
+    fn sort(&mut self, fluid: Vel, inv_cell: f32, keys: &mut [u64], sort: &mut [(u64, u32)], perm: &mut [u32]) -> f64 {
         compute_keys(fluid.x, fluid.y, fluid.z, inv_cell, keys);
-        sort_permutation(keys, sort, perm);
+        sort_permutation_into(keys, sort, perm);
         0.0
     }
 

@@ -124,15 +124,9 @@ pub trait Passes: Send {
     /// Pass 0: the Morton keys of the fluid positions (cells of
     /// `1 / inv_cell`) and the permutation that sorts them: `sort` gets the
     /// (key, index) pairs in ascending order, `perm` the indices (`keys` is
-    /// scratch). Returns the device time, ms (0 on the CPU).
-    fn sort(
-        &mut self,
-        fluid: Vel,
-        inv_cell: f32,
-        keys: &mut Vec<u64>,
-        sort: &mut Vec<(u64, u32)>,
-        perm: &mut Vec<u32>,
-    ) -> f64;
+    /// scratch); each slice has one entry per fluid particle. Returns the
+    /// device time, ms (0 on the CPU).
+    fn sort(&mut self, fluid: Vel, inv_cell: f32, keys: &mut [u64], sort: &mut [(u64, u32)], perm: &mut [u32]) -> f64;
 
     /// The end of pass 0: what this backend's later passes of the step need
     /// built from the step's grids (the GPU's cell-range tables; nothing on

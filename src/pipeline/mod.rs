@@ -164,9 +164,6 @@ pub struct StepStats {
 /// Neighbour structures and reused buffers (capacity persists across steps).
 #[derive(Default)]
 struct Workspace {
-    keys: Vec<u64>,
-    sort: Vec<(u64, u32)>,
-    perm: Vec<u32>,
     reorder: Scratch,
     fluid_grid: CellGrid,
     wall_grid: CellGrid,
@@ -267,8 +264,9 @@ pub struct Simulation {
 impl Simulation {
     /// Bytes of memory held, by what holds them (stores, neighbour pair
     /// lists by kind: f = fluid, b = wall, s = solid, `ffb` the inner
-    /// transport's copy of `ff`; grids and sort buffers; the step arena),
-    /// capacities included.
+    /// transport's copy of `ff`; the solids' rest rows; the step arena and
+    /// the pass scratch, which holds the fluid sort's buffers), capacities
+    /// included.
     pub fn memory(&self) -> Vec<(&'static str, usize)> {
         let (w, pairs) = (&self.work, &self.pairs);
         vec![
@@ -285,7 +283,6 @@ impl Simulation {
                 pairs.fs.bytes() + pairs.sf.bytes() + pairs.ss.bytes() + pairs.sb.bytes() + pairs.bs.bytes(),
             ),
             ("solid rest rows", 4 * (w.solid_own.capacity() + w.solid_v0.capacity())),
-            ("sort keys, buffer, perm", 8 * w.keys.capacity() + 16 * w.sort.capacity() + 4 * w.perm.capacity()),
             ("step arena", self.arena.allocated_bytes()),
             ("pass scratch", self.scratch.bytes()),
         ]

@@ -48,13 +48,20 @@ pub(super) fn search<'a>(
     let (v0, own) = (arena.alloc_slice_fill_copy(n, 0.0f32), arena.alloc_slice_fill_copy(n, 0.0f32));
     tm.time(Pass::Neighbors, || {
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        gpu_ms += backend.sort(fp, 1.0 / support, &mut w.keys, &mut w.sort, &mut w.perm);
-        if w.perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
-            fluid.reorder(&w.perm, &mut w.reorder);
+        // The sort's buffers live for this pass only (28 B a fluid
+        // particle that the workspace held through the step).
+        let scratch = cx.scratch.fresh();
+        let keys = scratch.alloc_slice_fill_copy(n, 0u64);
+        let sort = scratch.alloc_slice_fill_copy(n, (0u64, 0u32));
+        let perm = scratch.alloc_slice_fill_copy(n, 0u32);
+        gpu_ms += backend.sort(fp, 1.0 / support, keys, sort, perm);
+        if perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
+            fluid.reorder(perm, &mut w.reorder);
         }
-        w.keys.clear();
-        w.keys.extend(w.sort.iter().map(|&(k, _)| k));
-        w.fluid_grid.build(&w.keys, support);
+        for (k, &(key, _)) in keys.iter_mut().zip(&*sort) {
+            *k = key;
+        }
+        w.fluid_grid.build(keys, support);
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
         phases::rest_volumes(p.cell_volume(), fluid, v0);

@@ -351,11 +351,12 @@ impl Simulation {
 pub(super) fn wall_workspace(walls: &mut WallStore, params: &Params) -> Workspace {
     let mut work = Workspace::default();
     let inv_cell = 1.0 / params.kernel.support;
-    work.keys.resize(walls.len(), 0);
-    compute_keys(&walls.x, &walls.y, &walls.z, inv_cell, &mut work.keys);
-    sort_permutation(&work.keys, &mut work.sort, &mut work.perm);
-    walls.reorder(&work.perm, &mut work.reorder);
-    let sorted: Vec<u64> = work.sort.iter().map(|&(k, _)| k).collect();
+    let mut keys = vec![0; walls.len()];
+    compute_keys(&walls.x, &walls.y, &walls.z, inv_cell, &mut keys);
+    let (mut sort, mut perm) = (Vec::new(), Vec::new());
+    sort_permutation(&keys, &mut sort, &mut perm);
+    walls.reorder(&perm, &mut work.reorder);
+    let sorted: Vec<u64> = sort.iter().map(|&(k, _)| k).collect();
     work.wall_grid.build(&sorted, params.kernel.support);
     let near = work.wall_grid.dilated_keys();
     work.wall_near.build(&near, params.kernel.support);

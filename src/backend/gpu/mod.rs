@@ -267,6 +267,8 @@ impl GpuBackend {
         perm: &mut Vec<u32>,
     ) -> Result<Option<f64>, GpuError> {
         let ctx = &self.ctx;
+        sort.resize(pts.len(), (0, 0));
+        perm.resize(pts.len(), 0);
         self.neighbors.get_or_insert_with(|| NeighborsGpu::new(ctx)).sort(ctx, pts, inv_cell, sort, perm)
     }
 
@@ -317,16 +319,10 @@ impl Passes for GpuBackend {
     }
 
     /// The keys and sort on the GPU (bitwise the CPU's order), or on the CPU.
-    fn sort(
-        &mut self,
-        fluid: Vel,
-        inv_cell: f32,
-        keys: &mut Vec<u64>,
-        sort: &mut Vec<(u64, u32)>,
-        perm: &mut Vec<u32>,
-    ) -> f64 {
+    fn sort(&mut self, fluid: Vel, inv_cell: f32, keys: &mut [u64], sort: &mut [(u64, u32)], perm: &mut [u32]) -> f64 {
         if self.passes.neighbors {
-            match self.sort_permutation(fluid, inv_cell, sort, perm) {
+            let ctx = &self.ctx;
+            match self.neighbors.get_or_insert_with(|| NeighborsGpu::new(ctx)).sort(ctx, fluid, inv_cell, sort, perm) {
                 Ok(ms) => return ms.unwrap_or(0.0),
                 Err(e) => self.error = Some(format!("GPU neighbour sort failed: {e}")),
             }

@@ -112,19 +112,19 @@ impl NeighborsGpu {
 
     /// The Morton keys of `pts` (cells of size 1/`inv_cell`) sorted with
     /// their indices, into `sort` (key, index) and `perm` (`perm[new] =
-    /// old`), as `compute_keys` + `sort_permutation` give them on the CPU.
-    /// Returns the device time, ms, where timestamps are supported.
+    /// old`), as `compute_keys` + `sort_permutation` give them on the CPU;
+    /// both of `pts`' length. Returns the device time, ms, where timestamps
+    /// are supported.
     pub fn sort(
         &mut self,
         ctx: &GpuContext,
         pts: Vel,
         inv_cell: f32,
-        sort: &mut Vec<(u64, u32)>,
-        perm: &mut Vec<u32>,
+        sort: &mut [(u64, u32)],
+        perm: &mut [u32],
     ) -> Result<Option<f64>, GpuError> {
         let n = pts.len();
-        sort.clear();
-        perm.clear();
+        assert!(sort.len() == n && perm.len() == n, "sort buffers of the points' length");
         if n == 0 {
             return Ok(None);
         }
@@ -206,10 +206,10 @@ impl NeighborsGpu {
         }
         read_back(ctx, &reads, |k, bytes| {
             if k == 0 {
-                for v in bytes.chunks_exact(16) {
+                for ((v, s), p) in bytes.chunks_exact(16).zip(sort.iter_mut()).zip(perm.iter_mut()) {
                     let e: [u32; 4] = bytemuck::pod_read_unaligned(v);
-                    sort.push(((u64::from(e[0]) << 32) | u64::from(e[1]), e[2]));
-                    perm.push(e[2]);
+                    *s = ((u64::from(e[0]) << 32) | u64::from(e[1]), e[2]);
+                    *p = e[2];
                 }
             } else {
                 stamps = bytemuck::pod_read_unaligned(bytes);
