@@ -3,7 +3,7 @@
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
 use crate::blocks::{sum_f64, BLOCK};
-use crate::lanes::{pair_vectors, sum, PairVec, F};
+use crate::lanes::{pair_vectors, sum, Field3, Packed, PairVec, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
 use rayon::prelude::*;
@@ -14,6 +14,11 @@ pub struct ViscosityInput<'a> {
     pub ff: &'a PairLists,
     pub x: Vel<'a>,
     pub u: Vel<'a>,
+    /// `x` and `u` packed ([`Packed`]), where the caller made them: the
+    /// pairs' targets are then read with one load each instead of three
+    /// gathers (the same values; bench/RESULTS.md, "The Jacobi sweep's a^p
+    /// packed").
+    pub packed: Option<[&'a [Packed]; 2]>,
     /// Rest (mixture) density rho_fm, kg/m^3.
     pub rest_density: &'a [f32],
     /// Mixture viscosity mu_m, Pa s.
@@ -71,9 +76,11 @@ impl PairWeight for PhaseWeights<'_> {
 fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, v: &PairVec, i: usize, wt: &W) -> F {
     let eps = 0.01 * inp.h * inp.h;
     let x = inp.x;
-    let dx = F::splat(x.x[i]) - v.gather(x.x);
-    let dy = F::splat(x.y[i]) - v.gather(x.y);
-    let dz = F::splat(x.z[i]) - v.gather(x.z);
+    let [xj, yj, zj] = match inp.packed {
+        Some([xp, _]) => xp.gather3(v),
+        None => x.gather3(v),
+    };
+    let (dx, dy, dz) = (F::splat(x.x[i]) - xj, F::splat(x.y[i]) - yj, F::splat(x.z[i]) - zj);
     let r2 = dx * dx + dy * dy + dz * dz;
     // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
     let xg = -(dx * v.load(&blk.gx) + dy * v.load(&blk.gy) + dz * v.load(&blk.gz));
@@ -91,9 +98,13 @@ fn viscous_acceleration<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, q:
     let rhoi = inp.rest_density[i];
     for v in pair_vectors(&blk.j, blk.range(q)) {
         let c = pair_coefficients(inp, blk, &v, i, wt);
-        ax += c * (v.gather(u.x) - uxi);
-        ay += c * (v.gather(u.y) - uyi);
-        az += c * (v.gather(u.z) - uzi);
+        let [uxj, uyj, uzj] = match inp.packed {
+            Some([_, up]) => up.gather3(&v),
+            None => u.gather3(&v),
+        };
+        ax += c * (uxj - uxi);
+        ay += c * (uyj - uyi);
+        az += c * (uzj - uzi);
     }
     let inv = if rhoi > 0.0 { inp.h * inp.h * inp.h / rhoi } else { 0.0 };
     [inv * sum(ax), inv * sum(ay), inv * sum(az)]

@@ -8,7 +8,7 @@ use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::kernel::Kernel;
-use porosph_kernels::lanes::{pair_vectors, sum, F};
+use porosph_kernels::lanes::{pair_vectors, sum, Packed, F};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 use porosph_kernels::phase_transport::{correct, correction_sums, transport, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
@@ -273,7 +273,8 @@ fn drift_has_no_mass_weighted_mean_and_fluxes_add_up_to_zero() {
 
 /// With one phase of fraction 1 the phase pair weight is exactly 1, so the
 /// mixture viscosity is bitwise the one-phase viscosity (PHYSICS.md §5);
-/// and reading a uniform mu without its gather changes nothing.
+/// and reading a uniform mu without its gather, or x and u packed,
+/// changes nothing.
 #[test]
 fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
     let mut rng = Lcg(3);
@@ -288,6 +289,7 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
         ff: &lat.ff,
         x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
         u: Vel { x: &u[0], y: &u[1], z: &u[2] },
+        packed: None,
         rest_density: &rho,
         mu: &mu,
         mu_uniform: false,
@@ -315,9 +317,26 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
         let [x, y, z] = &mut u1;
         predict_velocity(&ViscosityInput { mu_uniform: true, ..inp }, x, y, z);
     }
+    // x and u packed, one phase and mixture.
+    let xp: Vec<Packed> = (0..n).map(|i| [lat.x[i], lat.y[i], lat.z[i], 0.0]).collect();
+    let up: Vec<Packed> = (0..n).map(|i| [u[0][i], u[1][i], u[2][i], 0.0]).collect();
+    let packed = ViscosityInput { packed: Some([&xp, &up]), ..inp };
+    let mut u2: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut b2: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut av2: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    {
+        let [x, y, z] = &mut u2;
+        predict_velocity(&packed, x, y, z);
+        let [bx, by, bz] = &mut b2;
+        let [vx, vy, vz] = &mut av2;
+        predict_velocity_mixture(&packed, &alpha, VelMut { x: bx, y: by, z: bz }, VelMut { x: vx, y: vy, z: vz });
+    }
     for c in 0..3 {
         assert!(a[c].iter().zip(&b[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}");
         assert!(a[c].iter().zip(&u1[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}, uniform mu");
+        assert!(a[c].iter().zip(&u2[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}, packed");
+        assert!(b[c].iter().zip(&b2[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "component {c}, packed mixture");
+        assert!(av[c].iter().zip(&av2[c]).all(|(p, q)| p.to_bits() == q.to_bits()), "a^visc {c}, packed");
     }
     assert!(av[0].iter().any(|&x| x != 0.0));
     assert_eq!(n.div_ceil(BLOCK), lat.ff.used().len());

@@ -8,7 +8,9 @@ use super::phases::PhaseState;
 use super::step::StepCtx;
 use super::timing::Pass;
 use crate::store::FluidStore;
-use porosph_kernels::blocks::nblocks;
+use bumpalo::Bump;
+use porosph_kernels::blocks::{nblocks, BLOCK};
+use porosph_kernels::lanes::Packed;
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::viscosity::{
@@ -42,11 +44,15 @@ pub(super) fn predict<'a>(
     let VelMut { x: usx, y: usy, z: usz } = zeros3(arena, n);
     let VelMut { x: avx, y: avy, z: avz } = zeros3(arena, nm);
     let mut iterations = 0;
+    let scratch = cx.scratch.fresh();
     tm.time(Pass::Viscosity, || {
+        let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
+        let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let inp = ViscosityInput {
             ff,
-            x: Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z },
-            u: Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz },
+            x,
+            u,
+            packed: Some([pack(scratch, x), pack(scratch, u)]),
             rest_density: ph.rest_density,
             mu: ph.mu,
             mu_uniform: ph.mu.par_iter().all(|&m| m == ph.mu[0]),
@@ -87,6 +93,18 @@ pub(super) fn predict<'a>(
         }
     });
     Prediction { u_star: Vel { x: usx, y: usy, z: usz }, a_visc: Vel { x: avx, y: avy, z: avz }, iterations }
+}
+
+/// `v` packed ([`Packed`]) in `scratch`.
+fn pack<'s>(scratch: &'s Bump, v: Vel) -> &'s [Packed] {
+    let out = scratch.alloc_slice_fill_copy(v.x.len(), [0.0f32; 4]);
+    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+        for (q, o) in o.iter_mut().enumerate() {
+            let i = b * BLOCK + q;
+            *o = [v.x[i], v.y[i], v.z[i], 0.0];
+        }
+    });
+    out
 }
 
 /// Largest number of conjugate-gradient iterations of the implicit viscosity.
