@@ -145,6 +145,7 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
         u_star,
         vol: &vol,
         vm: &vm,
+        packed: None,
         alpha_f: &alpha_f,
         sigma: &sigma,
         vol_wall: &vol_b_full,
@@ -162,6 +163,7 @@ fn case(shape: KernelShape, nx: usize, ny: usize, nz: usize, seed: u64) -> Case 
         sigma: &sigma_b,
         u_star,
         vm_fluid: &vm,
+        packed: None,
         vol_fluid: &vol,
         fluid_wall_gradient: Some(fluid_wall_gradient),
     };

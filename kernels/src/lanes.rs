@@ -261,10 +261,17 @@ impl PairVec {
     /// sweep's a^p packed").
     #[inline(always)]
     pub fn gather3(&self, src: &[Packed]) -> [F; 3] {
+        let [x, y, z, _] = self.gather4(src);
+        [x, y, z]
+    }
+
+    /// [`PairVec::gather3`] with the fourth entry of each [`Packed`] as well.
+    #[inline(always)]
+    pub fn gather4(&self, src: &[Packed]) -> [F; 4] {
         assert!((self.max as usize) < src.len(), "gather index out of bounds");
         // SAFETY: every lane's index is at most `max` (checked); an entry
         // is 4 f32.
-        unsafe { self.imp.gather3(src.as_ptr() as *const f32) }
+        unsafe { self.imp.gather4(src.as_ptr() as *const f32) }
     }
 
     /// Stores the first `n` lanes of `v` to `s[k..k + n]`. (A whole-vector
@@ -354,7 +361,7 @@ mod imp {
         /// # Safety
         /// `src` is valid for reads of 4 f32 at 4 times every index.
         #[inline(always)]
-        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
+        pub unsafe fn gather4(&self, src: *const f32) -> [F; 4] {
             let j = self.indices();
             // SAFETY: the caller's; register operations otherwise.
             unsafe {
@@ -375,6 +382,7 @@ mod imp {
                     _mm512_shuffle_ps::<0x44>(t0, t2),
                     _mm512_shuffle_ps::<0xEE>(t0, t2),
                     _mm512_shuffle_ps::<0x44>(t1, t3),
+                    _mm512_shuffle_ps::<0xEE>(t1, t3),
                 ]
                 .map(|v| std::mem::transmute::<__m512, F>(v))
             }
@@ -486,7 +494,7 @@ mod imp {
         /// # Safety
         /// `src` is valid for reads of 4 f32 at 4 times every index.
         #[inline(always)]
-        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
+        pub unsafe fn gather4(&self, src: *const f32) -> [F; 4] {
             let j = self.indices();
             // SAFETY: the caller's; register operations otherwise.
             unsafe {
@@ -503,10 +511,11 @@ mod imp {
                         _mm256_shuffle_ps::<0x44>(t0, t2),
                         _mm256_shuffle_ps::<0xEE>(t0, t2),
                         _mm256_shuffle_ps::<0x44>(t1, t3),
+                        _mm256_shuffle_ps::<0xEE>(t1, t3),
                     ]
                 };
                 let (a, b) = (half(0), half(1));
-                [0, 1, 2].map(|c| std::mem::transmute::<[__m256; 2], F>([a[c], b[c]]))
+                [0, 1, 2, 3].map(|c| std::mem::transmute::<[__m256; 2], F>([a[c], b[c]]))
             }
         }
 
@@ -565,8 +574,8 @@ mod imp {
         /// # Safety
         /// `src` is valid for reads of 4 f32 at 4 times every index.
         #[inline(always)]
-        pub unsafe fn gather3(&self, src: *const f32) -> [F; 3] {
-            [0, 1, 2].map(|c| F::from(self.idx.map(|i| unsafe { src.add(4 * i as usize + c).read() })))
+        pub unsafe fn gather4(&self, src: *const f32) -> [F; 4] {
+            [0, 1, 2, 3].map(|c| F::from(self.idx.map(|i| unsafe { src.add(4 * i as usize + c).read() })))
         }
 
         #[inline(always)]

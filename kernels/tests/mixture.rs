@@ -7,6 +7,7 @@
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
+use porosph_kernels::iisph::{self, FluidRows, WallRows};
 use porosph_kernels::kernel::Kernel;
 use porosph_kernels::lanes::{pair_vectors, sum, Packed, F};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
@@ -591,5 +592,78 @@ fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
                 }
             }
         }
+    }
+}
+
+/// The pressure rows (pass 4c) read u* and V/m at the fluid pairs' targets
+/// packed ([`FluidRows::packed`], [`WallRows::packed`]) or gathered: the
+/// same sources, diagonals and scaled pairs, bit for bit.
+#[test]
+fn pressure_rows_read_packed_u_star_and_vm_bitwise() {
+    let mut rng = Lcg(11);
+    let lat = lattice(10, &mut rng);
+    let n = lat.x.len();
+    let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
+    let vol: Vec<f32> = (0..n).map(|_| 0.9 + 0.2 * rng.next()).collect();
+    let vm: Vec<f32> = (0..n).map(|_| 1e-3 * (0.9 + 0.2 * rng.next())).collect();
+    let sigma: Vec<f32> = (0..n).map(|_| 0.95 + 0.1 * rng.next()).collect();
+    let alpha_f = vec![1.0f32; n];
+    let packed: Vec<Packed> = (0..n).map(|i| [u[0][i], u[1][i], u[2][i], vm[i]]).collect();
+    // Walls: a plane of points below the lattice, querying the fluid.
+    let (wx, wy, wz): (Vec<f32>, Vec<f32>, Vec<f32>) =
+        (0..100).map(|k| ((k % 10) as f32, -0.8, (k / 10) as f32)).fold((vec![], vec![], vec![]), |mut a, p| {
+            a.0.push(p.0);
+            a.1.push(p.1);
+            a.2.push(p.2);
+            a
+        });
+    let h = 2.0;
+    let mut keys = vec![0; n];
+    compute_keys(&lat.x, &lat.y, &lat.z, 1.0 / h, &mut keys);
+    let mut g = CellGrid::default();
+    g.build(&keys, h);
+    let mut bf = PairLists::default();
+    let fp = Vel { x: &lat.x, y: &lat.y, z: &lat.z };
+    build_pairs(&mut bf, Vel { x: &wx, y: &wy, z: &wz }, fp, &g, None, &Kernel::new(h));
+    assert!(bf.pairs() > 0);
+    let nw = wx.len();
+    let vol_b = vec![1.0f32; nw];
+    let sigma_b = vec![0.98f32; nw];
+    let run = |pk: Option<&[Packed]>| {
+        let (mut ff, mut fb, mut bf) = (lat.ff.clone(), PairLists::default(), bf.clone());
+        fb.clear_to(n);
+        let u_star = Vel { x: &u[0], y: &u[1], z: &u[2] };
+        let rows = FluidRows {
+            u_star,
+            vol: &vol,
+            vm: &vm,
+            packed: pk,
+            alpha_f: &alpha_f,
+            sigma: &sigma,
+            vol_wall: &vol_b,
+            vol_solid: &[],
+            u_solid: Vel { x: &[], y: &[], z: &[] },
+            mobility_solid: &[],
+        };
+        let (mut src, mut diag) = (vec![0.0; n], vec![0.0; n]);
+        iisph::fluid_setup(&mut ff, &mut fb, None, rows, 1e-3, &mut src, &mut diag);
+        let rows = WallRows {
+            vol: &vol_b,
+            sigma: &sigma_b,
+            u_star,
+            vm_fluid: &vm,
+            packed: pk,
+            vol_fluid: &vol,
+            fluid_wall_gradient: None,
+        };
+        let (mut src_b, mut diag_b) = (vec![0.0; nw], vec![0.0; nw]);
+        iisph::wall_setup(&mut bf, rows, 1e-3, &mut src_b, &mut diag_b);
+        let gx: Vec<f32> = ff.used().iter().flat_map(|b| b.gx.iter().copied()).collect();
+        [src, diag, src_b, diag_b, gx]
+    };
+    let (a, b) = (run(None), run(Some(&packed)));
+    for (k, (a, b)) in a.iter().zip(&b).enumerate() {
+        assert!(a.iter().any(|&v| v != 0.0), "output {k} is all zero");
+        assert!(a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits()), "output {k}");
     }
 }

@@ -113,11 +113,23 @@ pub(super) fn setup<'a>(
     let u_solid = Vel { x: usx, y: usy, z: usz };
     let (src_s, diag_s) = (zeros(arena, ns), zeros(arena, ns));
     let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
+    let scratch = cx.scratch.fresh();
     tm.time(Pass::PpeSetup, || {
+        // u* and V/m packed for the rows' pair loops.
+        let packed = scratch.alloc_slice_fill_copy(n, [0.0f32; 4]);
+        let (u, vm) = (pred.u_star, vols.vm);
+        packed.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+            for (q, o) in o.iter_mut().enumerate() {
+                let i = b * BLOCK + q;
+                *o = [u.x[i], u.y[i], u.z[i], vm[i]];
+            }
+        });
+        let packed = Some(&*packed);
         let rows = FluidRows {
             u_star: pred.u_star,
             vol: vols.vol,
             vm: vols.vm,
+            packed,
             alpha_f: ph.alpha_f,
             sigma: vols.sigma,
             vol_wall: vols.vol_wall_full,
@@ -141,7 +153,7 @@ pub(super) fn setup<'a>(
             (vols.sigma_wall, None)
         };
         let (u_star, vm_fluid, vol_fluid) = (pred.u_star, vols.vm, vols.vol);
-        let rows = WallRows { vol: vols.vol_wall, sigma, u_star, vm_fluid, vol_fluid, fluid_wall_gradient };
+        let rows = WallRows { vol: vols.vol_wall, sigma, u_star, vm_fluid, packed, vol_fluid, fluid_wall_gradient };
         iisph::wall_setup(&mut pairs.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
             let vol_free =
