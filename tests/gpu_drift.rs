@@ -261,7 +261,14 @@ fn cpu_pass(
     conservative: bool,
 ) -> Out {
     let n = c.vol.len();
-    let inp = PhaseVelocityInput { ff, alpha_f: frac_f, p_per_fraction: pf, a_visc: vel(&c.a_visc), a_p: vel(&c.a_p) };
+    let inp = PhaseVelocityInput {
+        ff,
+        alpha_f: frac_f,
+        p_per_fraction: pf,
+        a_visc: vel(&c.a_visc),
+        a_p: vel(&c.a_p),
+        packed: None,
+    };
     let mut u: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; NP * n]);
     let mut f: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; NP * n]);
     {

@@ -78,7 +78,7 @@
 
 use crate::band::BandVel;
 use crate::blocks::BLOCK;
-use crate::lanes::{pair_vectors, sum, F};
+use crate::lanes::{pair_vectors, sum, Packed, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{PhaseConstants, PhaseVel, MIN_ALPHA_F, MIN_PHASE_FRACTION};
 use crate::soa::{Vel, VelMut};
@@ -110,6 +110,34 @@ pub struct PhaseVelocityInput<'a> {
     pub a_visc: Vel<'a>,
     /// Pressure acceleration a^p of this step, m/s^2.
     pub a_p: Vel<'a>,
+    /// With at most [`PACKED_PHASES`] phases, the fractions and p / alpha_f
+    /// packed ([`pack_fractions`]), which [`phase_velocities`] then reads
+    /// at the pairs' targets with one load each instead of a gather per
+    /// phase and one for the pressure (the same values).
+    pub packed: Option<&'a [Packed]>,
+}
+
+/// Phases that [`pack_fractions`] packs with the pressure.
+pub const PACKED_PHASES: usize = 3;
+
+/// `[alpha_0, alpha_1, alpha_2, p / alpha_f]` per particle (0 past the
+/// phases and without `pf`) into `out`, for [`PhaseVelocityInput::packed`];
+/// `None` for more than [`PACKED_PHASES`] phases.
+pub fn pack_fractions<'o>(alpha: &[&[f32]], pf: Option<&[f32]>, out: &'o mut [Packed]) -> Option<&'o [Packed]> {
+    if alpha.len() > PACKED_PHASES {
+        return None;
+    }
+    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+        for (q, o) in o.iter_mut().enumerate() {
+            let i = b * BLOCK + q;
+            *o = [0.0; 4];
+            for (k, a) in alpha.iter().enumerate() {
+                o[k] = a[i];
+            }
+            o[3] = pf.map_or(0.0, |pf| pf[i]);
+        }
+    });
+    Some(out)
 }
 
 /// Step 1 of P-Eq. 11 for phase k (module doc), with a = -(a^visc + a^p)
@@ -174,6 +202,7 @@ pub fn phase_velocities(inp: &PhaseVelocityInput, alpha: &[&[f32]], phases: &[Ph
         PhaseOut(o.as_mut_ptr())
     });
     let blocks = &inp.ff.used()[..n.div_ceil(BLOCK)];
+    let packed = inp.packed.filter(|_| np <= PACKED_PHASES);
     blocks.par_iter().enumerate().for_each(|(b, blk)| {
         for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
             let q = i - b * BLOCK;
@@ -188,10 +217,10 @@ pub fn phase_velocities(inp: &PhaseVelocityInput, alpha: &[&[f32]], phases: &[Ph
                 let (a, c) = (&alpha[k0..(k0 + GROUP).min(np)], &phases[k0..(k0 + GROUP).min(np)]);
                 let at = (i, k0, n);
                 match a.len() {
-                    1 => velocity_group::<1>(inp, blk, q, at, a, c, &out),
-                    2 => velocity_group::<2>(inp, blk, q, at, a, c, &out),
-                    3 => velocity_group::<3>(inp, blk, q, at, a, c, &out),
-                    _ => velocity_group::<GROUP>(inp, blk, q, at, a, c, &out),
+                    1 => velocity_group::<1>(inp, blk, q, at, (a, packed), c, &out),
+                    2 => velocity_group::<2>(inp, blk, q, at, (a, packed), c, &out),
+                    3 => velocity_group::<3>(inp, blk, q, at, (a, packed), c, &out),
+                    _ => velocity_group::<GROUP>(inp, blk, q, at, (a, None), c, &out),
                 }
             }
         }
@@ -221,22 +250,24 @@ impl PhaseOut {
 }
 
 /// [`phase_velocities`] for the `G` phases `alpha` (constants `phases`),
-/// phase k0 + k of the `(i, k0, n)` of `at`: particle i, query q of `blk`.
+/// phase k0 + k of the `(i, k0, n)` of `at`: particle i, query q of `blk`;
+/// the fractions also packed where [`PhaseVelocityInput::packed`] holds
+/// them (G <= 3).
 #[inline(always)]
 fn velocity_group<const G: usize>(
     inp: &PhaseVelocityInput,
     blk: &PairBlock,
     q: usize,
     (i, k0, n): (usize, usize, usize),
-    alpha: &[&[f32]],
+    (alpha, packed): (&[&[f32]], Option<&[Packed]>),
     phases: &[PhaseConstants],
     out: &[PhaseOut; 6],
 ) {
     let r = blk.range(q);
     let ai: [f32; G] = std::array::from_fn(|k| alpha[k][i]);
     let (ga, gp) = match inp.p_per_fraction {
-        Some(pf) => gradients_group::<G, true>(blk, r, alpha, pf, ai, ai.map(|a| a * pf[i])),
-        None => gradients_group::<G, false>(blk, r, alpha, &[], ai, [0.0; G]),
+        Some(pf) => gradients_group::<G, true>(blk, r, (alpha, packed), pf, ai, ai.map(|a| a * pf[i])),
+        None => gradients_group::<G, false>(blk, r, (alpha, packed), &[], ai, [0.0; G]),
     };
     let (av, ap) = (inp.a_visc, inp.a_p);
     let a = [-(av.x[i] + ap.x[i]), -(av.y[i] + ap.y[i]), -(av.z[i] + ap.z[i])];
@@ -258,23 +289,34 @@ fn velocity_group<const G: usize>(
     }
 }
 
-/// [`gradients`] for `G` phases over one pass of the pairs.
+/// [`gradients`] for `G` phases over one pass of the pairs, the
+/// neighbours' fractions and p / alpha_f from `packed` where given (G <= 3;
+/// [`pack_fractions`]).
 #[inline(always)]
 fn gradients_group<const G: usize, const PRESSURE: bool>(
     blk: &PairBlock,
     r: std::ops::Range<usize>,
-    alpha: &[&[f32]],
+    (alpha, packed): (&[&[f32]], Option<&[Packed]>),
     pf: &[f32],
     ai: [f32; G],
     pki: [f32; G],
 ) -> ([[f32; 3]; G], [[f32; 3]; G]) {
+    assert!(packed.is_none() || G <= PACKED_PHASES, "{G} phases packed");
     let (vai, vpi) = (ai.map(F::splat), pki.map(F::splat));
     let (mut ga, mut gp) = ([[F::ZERO; 3]; G], [[F::ZERO; 3]; G]);
     for v in pair_vectors(&blk.j, r) {
         let (x, y, z) = (v.load(&blk.gx), v.load(&blk.gy), v.load(&blk.gz));
-        let pj = if PRESSURE { v.gather(pf) } else { F::ZERO };
+        let g4 = packed.map(|pk| v.gather4(pk));
+        let pj = match (PRESSURE, g4) {
+            (false, _) => F::ZERO,
+            (true, Some(g)) => g[3],
+            (true, None) => v.gather(pf),
+        };
         for k in 0..G {
-            let aj = v.gather(alpha[k]);
+            let aj = match g4 {
+                Some(g) => g[k],
+                None => v.gather(alpha[k]),
+            };
             let da = aj - vai[k];
             ga[k][0] += da * x;
             ga[k][1] += da * y;

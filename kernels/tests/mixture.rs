@@ -203,6 +203,7 @@ fn drift_has_no_mass_weighted_mean_and_fluxes_add_up_to_zero() {
             p_per_fraction: if fraction_pressure { Some(&pf) } else { None },
             a_visc: Vel { x: &avx, y: &avy, z: &avz },
             a_p: Vel { x: &apx, y: &apy, z: &apz },
+            packed: None,
         };
         let mut u: Vec<[Vec<f32>; 3]> = (0..np).map(|_| std::array::from_fn(|_| vec![0.0; n])).collect();
         let mut w: Vec<[Vec<f32>; 3]> = (0..np).map(|_| std::array::from_fn(|_| vec![0.0; n])).collect();
@@ -490,11 +491,11 @@ fn drift_momentum_tensor_form_is_the_sum_over_phases() {
         sign: -1.0,
     };
     let mut out: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-    let mut t: [Vec<f32>; 6] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut t: [Vec<Packed>; 2] = std::array::from_fn(|_| vec![[0.0; 4]; n]);
     {
         let [ox, oy, oz] = &mut out;
-        let [a, b, c, d, e, f] = &mut t;
-        drift_momentum(&inp, VelMut { x: ox, y: oy, z: oz }, [a, b, c, d, e, f]);
+        let [a, b] = &mut t;
+        drift_momentum(&inp, VelMut { x: ox, y: oy, z: oz }, [a, b]);
     }
     let mut worst = 0.0f64;
     let mut scale = 0.0f64;
@@ -564,14 +565,31 @@ fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
                 p_per_fraction: if fraction_pressure { Some(&pf) } else { None },
                 a_visc: Vel { x: &avx, y: &avy, z: &avz },
                 a_p: Vel { x: &apx, y: &apy, z: &apz },
+                packed: None,
             };
             let mut one: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; np * n]);
+            let a: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
             {
                 let [vx, vy, vz, wx, wy, wz] = &mut one;
-                let a: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
                 let v = VelMut { x: vx, y: vy, z: vz };
                 let w = VelMut { x: wx, y: wy, z: wz };
                 drift::phase_velocities(&inp, &a, &phases, v, w);
+            }
+            // With the fractions packed (up to three phases): the same bits.
+            let mut store = vec![[0.0f32; 4]; n];
+            let pk = drift::pack_fractions(&a, inp.p_per_fraction, &mut store);
+            assert_eq!(pk.is_some(), np <= drift::PACKED_PHASES);
+            if let Some(pk) = pk {
+                let mut packed: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; np * n]);
+                let [vx, vy, vz, wx, wy, wz] = &mut packed;
+                let (v, w) = (VelMut { x: vx, y: vy, z: vz }, VelMut { x: wx, y: wy, z: wz });
+                drift::phase_velocities(&PhaseVelocityInput { packed: Some(pk), ..inp }, &a, &phases, v, w);
+                for (c, (o, e)) in one.iter().zip(&packed).enumerate() {
+                    assert!(
+                        o.iter().zip(e).all(|(o, e)| o.to_bits() == e.to_bits()),
+                        "{np} phases, output {c}, packed"
+                    );
+                }
             }
             for k in 0..np {
                 let mut each: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; n]);

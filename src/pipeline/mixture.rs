@@ -214,7 +214,7 @@ pub(super) fn drift_momentum(
             sign: p.drift_momentum_sign,
         };
         let n = fluid.len();
-        let t = [zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n), zeros(tmp, n)];
+        let t = [tmp.alloc_slice_fill_copy(n, [0.0f32; 4]), tmp.alloc_slice_fill_copy(n, [0.0f32; 4])];
         dm::drift_momentum(&inp, d.reborrow(), t);
         for (a, d) in [(ap.x, &*d.x), (ap.y, &*d.y), (ap.z, &*d.z)] {
             a.par_iter_mut().zip(d.par_iter()).for_each(|(a, d)| *a += d);
