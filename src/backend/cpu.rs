@@ -56,6 +56,7 @@ impl Passes for Cpu {
         let mut sums = MixtureSums::new(arena, n, density, inp.conservative);
         // P-Eq. 11: the outer drift over the pressure solve's pairs.
         let DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } } = out;
+        // The fractions packed, for the outer drift and then the inner one.
         let packed = arena.alloc_slice_fill_copy(n, [0.0f32; 4]);
         let pv = PhaseVelocityInput {
             ff: prob.ff,
@@ -63,7 +64,7 @@ impl Passes for Cpu {
             p_per_fraction: inp.p_per_fraction,
             a_visc: inp.a_visc,
             a_p: inp.a_p,
-            packed: drift::pack_fractions(inp.alpha, inp.p_per_fraction, packed),
+            packed: drift::pack_fractions(inp.alpha, inp.p_per_fraction, &mut *packed),
         };
         let v = VelMut { x: &mut *ux, y: &mut *uy, z: &mut *uz };
         let w = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
@@ -91,7 +92,6 @@ impl Passes for Cpu {
         // particles have no pressure-solve volume).
         if let (Some(pd), Some(ffb), Some(out)) = (&inp.porous, prob.ffb, inner) {
             let DriftOutput { u: VelMut { x: bx, y: by, z: bz }, f: VelMut { x: gx, y: gy, z: gz } } = out;
-            let packed = arena.alloc_slice_fill_copy(n, [0.0f32; 4]);
             let pv = PhaseVelocityInput {
                 ff: ffb,
                 alpha_f: pd.beta_f,
