@@ -38,7 +38,7 @@
 //!   front), not in a uniform bulk.
 
 use crate::blocks::BLOCK;
-use crate::lanes::{pair_vectors, sum, F, LANES};
+use crate::lanes::{pair_vectors, sum, Packed, F, LANES};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{join, split, PhaseVel};
 use crate::soa::Vel;
@@ -58,8 +58,10 @@ pub struct TransportScratch<'a> {
     pub net: &'a mut [f32],
     /// min_k lambda_k,i, per particle.
     pub least: &'a mut [f32],
-    /// The new fractions, particle-major, before they go to `out`.
-    pub next: &'a mut [f64],
+    /// The fluxes F_k packed (`[x, y, z, 0]`), phase k at `[k n, (k + 1)
+    /// n)`: the pair loops read a neighbour's flux with one 16-byte load
+    /// instead of three gathers.
+    pub flux: &'a mut [Packed],
     /// Per particle: limited or next to a limited particle.
     pub near: &'a mut [bool],
 }
@@ -105,27 +107,58 @@ pub fn transport(
     if np == 0 || n == 0 {
         return;
     }
-    let TransportScratch { limit, net, least, next, near } = scratch;
+    let TransportScratch { limit, net, least, flux: packed, near } = scratch;
+    pack_fluxes(flux, n, packed);
+    let flux = Fluxes { packed, n };
     outflow(ff, alpha, flux, dt, limit, net, least);
     let near = near_limited(ff, least, near);
-    next.par_chunks_mut(BLOCK * np).zip(ff.used().par_iter()).enumerate().for_each(|(b, (o, blk))| {
-        for q in 0..o.len() / np {
+    // The limited sums replace the unlimited ones in `net` (a particle's
+    // own entries: no other particle reads them); both are f32 sums.
+    let limit: &[f32] = limit;
+    net.par_chunks_mut(BLOCK * np).zip(ff.used().par_iter()).enumerate().for_each(|(b, (s, blk))| {
+        for q in 0..s.len() / np {
             let i = b * BLOCK + q;
-            let o = &mut o[q * np..(q + 1) * np];
             if near[i] {
-                limited_sums(blk, q, i, flux, limit, np, o);
-            } else {
-                for (k, o) in o.iter_mut().enumerate() {
-                    *o = f64::from(net[i * np + k]);
-                }
-            }
-            for (k, o) in o.iter_mut().enumerate() {
-                *o = join(alpha[k][i], lo[k][i]) - f64::from(dt) * *o;
+                limited_sums(blk, q, i, flux, limit, np, &mut s[q * np..(q + 1) * np]);
             }
         }
     });
     for (k, out) in out.chunks_mut(n).enumerate() {
-        out.par_iter_mut().enumerate().for_each(|(i, o)| *o = next[i * np + k]);
+        let (a, lo, net) = (alpha[k], lo[k], &*net);
+        out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+            for (q, o) in o.iter_mut().enumerate() {
+                let i = b * BLOCK + q;
+                *o = join(a[i], lo[i]) - f64::from(dt) * f64::from(net[i * np + k]);
+            }
+        });
+    }
+}
+
+/// Every phase's flux F_k packed, phase k at `[k n, (k + 1) n)`.
+#[derive(Clone, Copy)]
+struct Fluxes<'a> {
+    packed: &'a [Packed],
+    n: usize,
+}
+
+impl<'a> Fluxes<'a> {
+    /// Phase k's fluxes.
+    #[inline(always)]
+    fn phase(self, k: usize) -> &'a [Packed] {
+        &self.packed[k * self.n..(k + 1) * self.n]
+    }
+}
+
+/// The fluxes `flux` packed into `out` (phase k at `[k n, (k + 1) n)`).
+fn pack_fluxes(flux: PhaseVel, n: usize, out: &mut [Packed]) {
+    for (k, out) in out.chunks_mut(n).enumerate() {
+        let (x, y, z) = (flux.x[k], flux.y[k], flux.z[k]);
+        out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+            for (q, o) in o.iter_mut().enumerate() {
+                let i = b * BLOCK + q;
+                *o = [x[i], y[i], z[i], 0.0];
+            }
+        });
     }
 }
 
@@ -160,7 +193,7 @@ fn near_limited<'a>(ff: &PairLists, least: &[f32], near: &'a mut [bool]) -> &'a 
 fn outflow(
     ff: &PairLists,
     alpha: &[&[f32]],
-    flux: PhaseVel,
+    flux: Fluxes,
     dt: f32,
     limit: &mut [f32],
     net: &mut [f32],
@@ -210,7 +243,8 @@ struct Pairs<'a> {
 
 /// [`outflow`] for the `G` phases `k0..k0 + G` of particle i, whose
 /// fractions are `alpha`: the outflow limits into `l`, the net outflows
-/// into `s`. `G` a constant, so that the per-phase sums stay in registers.
+/// into `s`. `G` a constant, so
+/// that the per-phase sums stay in registers.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn outflow_group<const G: usize>(
@@ -218,25 +252,23 @@ fn outflow_group<const G: usize>(
     i: usize,
     k0: usize,
     alpha: &[&[f32]],
-    flux: PhaseVel,
+    flux: Fluxes,
     dt: f32,
     l: &mut [f32],
     s: &mut [f32],
 ) {
     let Pairs { r, j, gx, gy, gz } = pairs;
+    let fk: [&[Packed]; G] = std::array::from_fn(|k| flux.phase(k0 + k));
     let fi: [[F; 3]; G] = std::array::from_fn(|k| {
-        [F::splat(flux.x[k0 + k][i]), F::splat(flux.y[k0 + k][i]), F::splat(flux.z[k0 + k][i])]
+        let [x, y, z, _] = fk[k][i];
+        [F::splat(x), F::splat(y), F::splat(z)]
     });
-    let fx: [&[f32]; G] = std::array::from_fn(|k| flux.x[k0 + k]);
-    let fy: [&[f32]; G] = std::array::from_fn(|k| flux.y[k0 + k]);
-    let fz: [&[f32]; G] = std::array::from_fn(|k| flux.z[k0 + k]);
     let (mut leave, mut sum_phi) = ([F::ZERO; G], [F::ZERO; G]);
     for v in pair_vectors(j, r.clone()) {
         let (wx, wy, wz) = (v.load(gx), v.load(gy), v.load(gz));
         for k in 0..G {
-            let phi = (v.gather(fx[k]) + fi[k][0]) * wx
-                + (v.gather(fy[k]) + fi[k][1]) * wy
-                + (v.gather(fz[k]) + fi[k][2]) * wz;
+            let [fx, fy, fz] = v.gather3(fk[k]);
+            let phi = (fx + fi[k][0]) * wx + (fy + fi[k][1]) * wy + (fz + fi[k][2]) * wz;
             leave[k] += phi.max(F::ZERO);
             sum_phi[k] += phi;
         }
@@ -251,7 +283,7 @@ fn outflow_group<const G: usize>(
 
 /// sum_j Lambda_ij phi_k,ij of particle i (query q of `blk`) for every
 /// phase, into `o`: the fluxes again, with the pair limits.
-fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f32], np: usize, o: &mut [f64]) {
+fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: Fluxes, limit: &[f32], np: usize, o: &mut [f32]) {
     let r = blk.range(q);
     let (gx, gy, gz) = (&blk.gx, &blk.gy, &blk.gz);
     for k0 in (0..np).step_by(GROUP) {
@@ -264,9 +296,10 @@ fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f3
             let mut lam = F::splat(1.0);
             let mut phis = [F::ZERO; GROUP];
             for k in 0..np {
-                let phi = (v.gather(flux.x[k]) + F::splat(flux.x[k][i])) * wx
-                    + (v.gather(flux.y[k]) + F::splat(flux.y[k][i])) * wy
-                    + (v.gather(flux.z[k]) + F::splat(flux.z[k][i])) * wz;
+                let fk = flux.phase(k);
+                let [fx, fy, fz] = v.gather3(fk);
+                let [fxi, fyi, fzi, _] = fk[i];
+                let phi = (fx + F::splat(fxi)) * wx + (fy + F::splat(fyi)) * wy + (fz + F::splat(fzi)) * wz;
                 let lj = F::from(std::array::from_fn::<f32, LANES, _>(|l| limit[j[l] as usize * np + k]));
                 let from_j = Select::select(phi.simd_lt(F::ZERO), lj, F::splat(1.0));
                 lam = lam.min(Select::select(phi.simd_gt(F::ZERO), F::splat(limit[i * np + k]), from_j));
@@ -279,7 +312,7 @@ fn limited_sums(blk: &PairBlock, q: usize, i: usize, flux: PhaseVel, limit: &[f3
             }
         }
         for k in 0..g {
-            o[k0 + k] = f64::from(sum(acc[k]));
+            o[k0 + k] = sum(acc[k]);
         }
     }
 }

@@ -347,11 +347,11 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
 /// [`transport`] into per-phase vectors (zero low parts).
 fn transport_all(ff: &PairLists, alpha: &[Vec<f32>], flux: &PhaseVel, dt: f32) -> Vec<Vec<f64>> {
     let (np, n) = (alpha.len(), alpha[0].len());
-    let (mut limit, mut net, mut least, mut scratch) =
-        (vec![0.0f32; np * n], vec![0.0f32; np * n], vec![0.0f32; n], vec![0.0f64; np * n]);
+    let (mut limit, mut net, mut least, mut packed) =
+        (vec![0.0f32; np * n], vec![0.0f32; np * n], vec![0.0f32; n], vec![[0.0f32; 4]; np * n]);
     let mut near = vec![false; n];
     let scratch =
-        TransportScratch { limit: &mut limit, net: &mut net, least: &mut least, next: &mut scratch, near: &mut near };
+        TransportScratch { limit: &mut limit, net: &mut net, least: &mut least, flux: &mut packed, near: &mut near };
     let frac: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
     let zero = vec![0.0f32; n];
     let lo: Vec<&[f32]> = (0..np).map(|_| zero.as_slice()).collect();

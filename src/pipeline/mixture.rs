@@ -282,7 +282,7 @@ impl Transport<'_> {
                 limit: zeros(arena, np * n),
                 net: zeros(arena, np * n),
                 least: zeros(arena, n),
-                next: arena.alloc_slice_fill_copy(np * n, 0.0f64),
+                flux: arena.alloc_slice_fill_copy(np * n, [0.0f32; 4]),
                 near: arena.alloc_slice_fill_copy(n, false),
             };
             let lo = arena.alloc_slice_fill_iter(lo.iter().map(|l| l.as_slice()));
