@@ -67,9 +67,10 @@ pub(super) fn partition<'a>(
     let tmp = cx.scratch.fresh();
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
-        let mask = arena.alloc_slice_fill_iter(
-            w.solid_perm.iter().map(|&i| p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32),
-        );
+        let mask = zeros(arena, w.solid_perm.len());
+        mask.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(m, &i)| {
+            *m = p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32;
+        });
         let n_f = zeros(arena, fluid.len());
         iisph::kernel_sums(&pairs.fs, mask, n_f);
         for (alpha, beta) in outer_inner(fluid) {
@@ -89,12 +90,13 @@ pub(super) fn partition<'a>(
         let (n, cell) = (fluid.len(), p.cell_volume());
         let fill = zeros(arena, fluid.alpha.len() * n);
         for (k, fill) in fill.chunks_mut(n.max(1)).enumerate() {
-            let absorbs = tmp.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| {
+            let absorbs = zeros(tmp, w.solid_perm.len());
+            absorbs.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(a, &i)| {
                 let i = i as usize;
                 let r = p.porous[solids.body[i] as usize].as_ref();
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
-                r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume
-            }));
+                *a = r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume;
+            });
             iisph::kernel_sums(&pairs.fs, absorbs, fill);
         }
         // Walls fill the neighbourhood as well as the solid does: a partly
@@ -269,17 +271,26 @@ fn pore_state<'a>(
     let pore = zeros(tmp, ns);
     let vol = zeros(tmp, ns);
     {
-        let mass_s = tmp.alloc_slice_fill_iter(perm.iter().map(|&i| solids.mass[i as usize]));
+        let mass_s = zeros(tmp, ns);
+        mass_s.par_iter_mut().zip(perm.par_iter()).for_each(|(m, &i)| *m = solids.mass[i as usize]);
         let rho_s = zeros(tmp, ns);
         iisph::kernel_sums(&pairs.ss, mass_s, rho_s);
+        let sat = zeros(tmp, ns);
+        let strain = &solids.strain_trace;
+        let state = pore.par_chunks_mut(BLOCK).zip(vol.par_chunks_mut(BLOCK)).zip(sat.par_chunks_mut(BLOCK));
+        state.enumerate().for_each(|(b, ((pore, vol), sat))| {
+            for o in 0..pore.len() {
+                let k = b * BLOCK + o;
+                sat[o] = (0..np).map(|ph| phi[ph][k]).sum();
+                if let Some(r) = region(k) {
+                    pore[o] = r.rest_pore_pressure * sat[o] - r.biot_modulus * strain[perm[k] as usize];
+                    vol[o] = if rho_s[k] > 0.0 { mass_s[k] / rho_s[k] } else { 0.0 };
+                }
+            }
+        });
         for k in 0..ns {
             let i = perm[k] as usize;
-            let sat: f32 = (0..np).map(|ph| phi[ph][k]).sum();
-            if let Some(r) = region(k) {
-                pore[k] = r.rest_pore_pressure * sat - r.biot_modulus * solids.strain_trace[i];
-                vol[k] = if rho_s[k] > 0.0 { mass_s[k] / rho_s[k] } else { 0.0 };
-            }
-            solids.saturation[i] = sat;
+            solids.saturation[i] = sat[k];
             solids.pore_pressure[i] = pore[k];
         }
     }
@@ -291,12 +302,12 @@ fn pore_state<'a>(
     // The drained boundary: the outer liquid of each absorbed phase stands
     // for a surface particle's missing neighbours at p_0k.
     for k in 0..np {
-        let p0k = tmp.alloc_slice_fill_iter(
-            (0..ns).map(|s| region(s).and_then(|r| r.phases[k]).map_or(0.0, |ph| ph.outer_pore_pressure)),
-        );
-        let absorbs = tmp.alloc_slice_fill_iter(
-            (0..ns).map(|s| (vol[s] > 0.0 && region(s).is_some_and(|r| r.phases[k].is_some())) as u32 as f32),
-        );
+        let (p0k, absorbs) = (zeros(tmp, ns), zeros(tmp, ns));
+        p0k.par_iter_mut().zip(absorbs.par_iter_mut()).enumerate().for_each(|(s, (p0k, absorbs))| {
+            let phase = region(s).and_then(|r| r.phases[k]);
+            *p0k = phase.map_or(0.0, |ph| ph.outer_pore_pressure);
+            *absorbs = (vol[s] > 0.0 && phase.is_some()) as u32 as f32;
+        });
         let g = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
         drained_boundary(&pairs.sf, (&fluid.alpha[k], cell), p0k, absorbs, pore, g);
     }
@@ -306,22 +317,32 @@ fn pore_state<'a>(
         let VelMut { x: ux, y: uy, z: uz } = zeros3(tmp, ns);
         let p0k = zeros(tmp, ns);
         let cond = zeros(tmp, ns);
-        for s in 0..ns {
-            let i = perm[s] as usize;
-            let Some(r) = region(s) else { continue };
-            let mu = p.phase_viscosity[k];
-            let phase = r.phases[k];
-            let kw = match phase {
-                Some(ph) if mu > 0.0 => ph.permeability / mu,
-                _ => 0.0,
-            };
-            (qx[s], qy[s], qz[s]) = (-kw * gx[s], -kw * gy[s], -kw * gz[s]);
-            let e = r.porosity;
-            (ux[s], uy[s], uz[s]) = (qx[s] / e + solids.vx[i], qy[s] / e + solids.vy[i], qz[s] / e + solids.vz[i]);
-            max_darcy = max_darcy.max((qx[s] * qx[s] + qy[s] * qy[s] + qz[s] * qz[s]).sqrt() / e);
-            p0k[s] = phase.map_or(0.0, |ph| ph.outer_pore_pressure);
-            cond[s] = r.absorption * kw;
-        }
+        let mu = p.phase_viscosity[k];
+        let (g, v) = ([&*gx, &*gy, &*gz], [&solids.vx, &solids.vy, &solids.vz]);
+        let q = qx.par_chunks_mut(BLOCK).zip(qy.par_chunks_mut(BLOCK)).zip(qz.par_chunks_mut(BLOCK));
+        let u = ux.par_chunks_mut(BLOCK).zip(uy.par_chunks_mut(BLOCK)).zip(uz.par_chunks_mut(BLOCK));
+        let c = p0k.par_chunks_mut(BLOCK).zip(cond.par_chunks_mut(BLOCK));
+        let fastest = q.zip(u).zip(c).enumerate().map(|(b, ((((qx, qy), qz), ((ux, uy), uz)), (p0k, cond)))| {
+            let mut fastest = 0.0f32;
+            for o in 0..qx.len() {
+                let s = b * BLOCK + o;
+                let i = perm[s] as usize;
+                let Some(r) = region(s) else { continue };
+                let phase = r.phases[k];
+                let kw = match phase {
+                    Some(ph) if mu > 0.0 => ph.permeability / mu,
+                    _ => 0.0,
+                };
+                (qx[o], qy[o], qz[o]) = (-kw * g[0][s], -kw * g[1][s], -kw * g[2][s]);
+                let e = r.porosity;
+                (ux[o], uy[o], uz[o]) = (qx[o] / e + v[0][i], qy[o] / e + v[1][i], qz[o] / e + v[2][i]);
+                fastest = fastest.max((qx[o] * qx[o] + qy[o] * qy[o] + qz[o] * qz[o]).sqrt() / e);
+                p0k[o] = phase.map_or(0.0, |ph| ph.outer_pore_pressure);
+                cond[o] = r.absorption * kw;
+            }
+            fastest
+        });
+        max_darcy = max_darcy.max(fastest.reduce(|| 0.0, f32::max));
         (Vel { x: qx, y: qy, z: qz }, Vel { x: ux, y: uy, z: uz }, &*p0k, &*cond)
     };
     let per_solid = tmp.alloc_slice_fill_iter((0..np).map(&mut solid_phase));
@@ -332,7 +353,8 @@ fn pore_state<'a>(
     let band = Band::new(arena, n, |i| !fs[i / BLOCK].range(i % BLOCK).is_empty());
     let m = band.len();
     let VelMut { x: cx, y: cy, z: cz } = zeros3(arena, m);
-    let psi = tmp.alloc_slice_fill_iter((0..ns).map(|k| region(k).map_or(0.0, |r| r.capillarity)));
+    let psi = zeros(tmp, ns);
+    psi.par_iter_mut().enumerate().for_each(|(k, psi)| *psi = region(k).map_or(0.0, |r| r.capillarity));
     capillary_normal(&pairs.fs, band, vol, psi, VelMut { x: &mut *cx, y: &mut *cy, z: &mut *cz });
     let flat = |arena: &'a Bump| [zeros(arena, np * m), zeros(arena, np * m), zeros(arena, np * m)];
     // u_betak,f of one phase at a time (pass scratch), summed into the
