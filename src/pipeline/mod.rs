@@ -187,6 +187,10 @@ struct Workspace {
     solid_sort: Vec<(u64, u32)>,
     /// Sorted solid index -> store index.
     solid_perm: Vec<u32>,
+    /// Store index -> sorted solid index (the inverse of `solid_perm`):
+    /// store-order results are gathered in parallel through it instead of
+    /// scattered through `solid_perm` on one thread.
+    solid_inv: Vec<u32>,
     /// Solid positions in sorted order.
     solid_sorted: [Vec<f32>; 3],
     solid_grid: CellGrid,

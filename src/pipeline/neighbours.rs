@@ -132,6 +132,10 @@ fn solid_pairs(
         w.solid_sort.par_extend(w.solid_perm.par_iter().map(|&i| (keys[i as usize], i)));
     } else {
         sort_permutation(&w.solid_keys, &mut w.solid_sort, &mut w.solid_perm);
+        w.solid_inv.resize(ns, 0);
+        for (k, &i) in w.solid_perm.iter().enumerate() {
+            w.solid_inv[i as usize] = k as u32;
+        }
     }
     w.solid_keys.clear();
     w.solid_keys.extend(w.solid_sort.iter().map(|&(k, _)| k));

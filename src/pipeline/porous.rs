@@ -288,11 +288,8 @@ fn pore_state<'a>(
                 }
             }
         });
-        for k in 0..ns {
-            let i = perm[k] as usize;
-            solids.saturation[i] = sat[k];
-            solids.pore_pressure[i] = pore[k];
-        }
+        let store = solids.saturation.par_iter_mut().zip(solids.pore_pressure.par_iter_mut());
+        store.zip(w.solid_inv.par_iter()).for_each(|((s, p), &k)| (*s, *p) = (sat[k as usize], pore[k as usize]));
     }
 
     // P-Eqs. 19, 1: grad p^pore, q_k = -(k_wk / mu_k) grad p^pore,
@@ -393,9 +390,10 @@ fn pore_state<'a>(
     let swells = p.porous.iter().flatten().any(|r| r.swelling > 0.0);
     let pore_stress = swells.then(|| {
         let out = zeros(arena, ns);
-        for (k, &i) in perm.iter().enumerate() {
-            out[i as usize] = region(k).map_or(0.0, |r| r.swelling) * pore[k];
-        }
+        out.par_iter_mut().zip(w.solid_inv.par_iter()).for_each(|(o, &k)| {
+            let k = k as usize;
+            *o = region(k).map_or(0.0, |r| r.swelling) * pore[k];
+        });
         &*out
     });
     let [ix, iy, iz] = u_in;

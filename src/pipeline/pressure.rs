@@ -96,23 +96,23 @@ pub(super) fn setup<'a>(
                 }
             });
             let contact = arena.alloc_slice_fill_copy(ns, 0u32);
-            for (k, &i) in w.solid_perm.iter().enumerate() {
-                contact[i as usize] = sorted[k];
-            }
+            contact.par_iter_mut().zip(w.solid_inv.par_iter()).for_each(|(c, &k)| *c = sorted[k as usize]);
             contact
         } else {
             &[]
         };
         model.mobility(solids, contact, c);
-        for (k, &i) in w.solid_perm.iter().enumerate() {
+        let u = (&mut *usx, &mut *usy, &mut *usz, &mut *mobility, &w.solid_perm[..]);
+        u.into_par_iter().for_each(|(x, y, z, m, &i)| {
             let i = i as usize;
-            (usx[k], usy[k], usz[k]) = (v[i].x, v[i].y, v[i].z);
-            mobility[k] = c[i];
-        }
+            (*x, *y, *z) = (v[i].x, v[i].y, v[i].z);
+            *m = c[i];
+        });
     }
     let u_solid = Vel { x: usx, y: usy, z: usz };
     let (src_s, diag_s) = (zeros(arena, ns), zeros(arena, ns));
-    let p_s = arena.alloc_slice_fill_iter(w.solid_perm.iter().map(|&i| 0.5 * solids.pressure[i as usize]));
+    let p_s = zeros(arena, ns);
+    p_s.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(p, &i)| *p = 0.5 * solids.pressure[i as usize]);
     let scratch = cx.scratch.fresh();
     tm.time(Pass::PpeSetup, || {
         // u* and V/m packed for the rows' pair loops.
@@ -318,6 +318,7 @@ pub(super) fn solve<'a>(
         model,
         solids,
         perm: &w.solid_perm,
+        inv: &w.solid_inv,
         force: tmp.alloc_slice_fill_copy(ns, Vec3::ZERO),
         accel: &mut *accel_solid,
         tolerance: p.elastic_tolerance,

@@ -431,8 +431,9 @@ pub const RESPONSE_ITERATIONS_PER_SWEEP: u32 = 1;
 pub(super) struct BodyResponse<'a> {
     pub model: &'a mut dyn SolidModel,
     pub solids: &'a SolidStore,
-    /// Sorted index -> store index.
+    /// Sorted index -> store index, and its inverse.
     pub perm: &'a [u32],
+    pub inv: &'a [u32],
     /// Store-order scratch: forces and accelerations.
     pub force: &'a mut [Vec3],
     pub accel: &'a mut [Vec3],
@@ -444,9 +445,10 @@ pub(super) struct BodyResponse<'a> {
 
 impl Compliance for BodyResponse<'_> {
     fn respond(&mut self, force: Vel, accel: VelMut, exact: bool) {
-        for (k, &i) in self.perm.iter().enumerate() {
-            self.force[i as usize] = Vec3::new(force.x[k], force.y[k], force.z[k]);
-        }
+        self.force.par_iter_mut().zip(self.inv.par_iter()).for_each(|(f, &k)| {
+            let k = k as usize;
+            *f = Vec3::new(force.x[k], force.y[k], force.z[k]);
+        });
         let (tol, max) =
             if exact { (self.tolerance, self.max_iterations) } else { (self.tolerance, RESPONSE_ITERATIONS_PER_SWEEP) };
         // Every sweep's response continues the last one (the same system,
@@ -493,14 +495,12 @@ pub(super) fn finish(
     model: &dyn SolidModel,
     accel: &[Vec3],
     p_solid: &[f32],
-    perm: &[u32],
+    inv: &[u32],
 ) {
     let dt = cx.dt;
     let tm = &mut cx.tm;
     tm.time(Pass::Elasticity, || {
-        for (k, &i) in perm.iter().enumerate() {
-            solids.pressure[i as usize] = p_solid[k];
-        }
+        solids.pressure.par_iter_mut().zip(inv.par_iter()).for_each(|(p, &k)| *p = p_solid[k as usize]);
         for (i, (v, a)) in model.predicted().iter().zip(accel).enumerate() {
             if solids.fixed[i] == 0 {
                 let v = *v + dt * *a;

@@ -322,7 +322,7 @@ fn step_passes<'a>(
     // From here on the pairs are V̄_ij grad W_ij.
     let scaled = solved.pairs.lists();
     if !solids.is_empty() {
-        solid::finish(cx, solids, model, solved.accel_solid, solved.p_solid, &w.solid_perm);
+        solid::finish(cx, solids, model, solved.accel_solid, solved.p_solid, &w.solid_inv);
         let [sx, sy, sz] = &w.solid_sorted;
         let near = solid::Current {
             ss: &scaled.ss,
