@@ -250,16 +250,15 @@ impl SolidModel for Peer2018 {
     fn deform(&mut self, s: &mut SolidStore) {
         self.carry.forget();
         let n = s.len();
-        self.x.clear();
-        self.x.extend((0..n).map(|i| Vec3::new(s.x[i], s.y[i], s.z[i])));
-        self.rot.clear();
-        self.rot.extend((0..n).map(|i| Quat::from_xyzw(s.qx[i], s.qy[i], s.qz[i], s.qw[i])));
+        self.x.resize(n, Vec3::ZERO);
+        self.x.par_iter_mut().enumerate().for_each(|(i, x)| *x = Vec3::new(s.x[i], s.y[i], s.z[i]));
+        self.rot.resize(n, Quat::IDENTITY);
+        self.rot.par_iter_mut().enumerate().for_each(|(i, q)| *q = Quat::from_xyzw(s.qx[i], s.qy[i], s.qz[i], s.qw[i]));
         self.def.resize(n, Deformation::default());
         // PHYSICS.md §3.2 steps 1-5: rotations and strain.
         deform(&self.rest, &self.x, &mut self.rot, &mut self.def);
-        for (i, q) in self.rot.iter().enumerate() {
-            (s.qx[i], s.qy[i], s.qz[i], s.qw[i]) = (q.x, q.y, q.z, q.w);
-        }
+        let store = (&mut s.qx[..], &mut s.qy[..], &mut s.qz[..], &mut s.qw[..], &self.rot[..]);
+        store.into_par_iter().for_each(|(x, y, z, w, q)| (*x, *y, *z, *w) = (q.x, q.y, q.z, q.w));
         s.strain_trace.par_iter_mut().zip(self.def.par_iter()).for_each(|(t, d)| *t = trace(&d.strain));
     }
 
@@ -279,25 +278,13 @@ impl SolidModel for Peer2018 {
         // v + dt g; fixed particles keep their prescribed velocity. Solved
         // to the prediction's tolerance only: the last response takes on
         // the rest (`respond`).
-        self.v.clear();
-        self.v.extend((0..n).map(|i| {
-            let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
-            if s.fixed[i] != 0 {
-                v
-            } else {
-                v + dt * g
-            }
-        }));
-        self.rhs.clear();
-        self.rhs.extend((0..n).map(|i| {
-            let m = s.mass[i];
-            let v = Vec3::new(s.vx[i], s.vy[i], s.vz[i]);
-            if s.fixed[i] != 0 {
-                m * v
-            } else {
-                m * v + dt * (m * g + self.force[i])
-            }
-        }));
+        self.v.resize(n, Vec3::ZERO);
+        self.rhs.resize(n, Vec3::ZERO);
+        let force = &self.force;
+        self.v.par_iter_mut().zip(self.rhs.par_iter_mut()).enumerate().for_each(|(i, (v, rhs))| {
+            let (m, u) = (s.mass[i], Vec3::new(s.vx[i], s.vy[i], s.vz[i]));
+            (*v, *rhs) = if s.fixed[i] != 0 { (u, m * u) } else { (u + dt * g, m * u + dt * (m * g + force[i])) };
+        });
         // A push from outside acts along the surface normal: the rest
         // s_i = sum_j w_ij (inward at the surface), rotated.
         self.normal.clear();
@@ -501,11 +488,13 @@ pub(super) fn finish(
     let tm = &mut cx.tm;
     tm.time(Pass::Elasticity, || {
         solids.pressure.par_iter_mut().zip(inv.par_iter()).for_each(|(p, &k)| *p = p_solid[k as usize]);
-        for (i, (v, a)) in model.predicted().iter().zip(accel).enumerate() {
-            if solids.fixed[i] == 0 {
+        let store = (&mut solids.vx[..], &mut solids.vy[..], &mut solids.vz[..], &solids.fixed[..]);
+        let update = (model.predicted(), accel).into_par_iter();
+        store.into_par_iter().zip(update).for_each(|((x, y, z, &fixed), (v, a))| {
+            if fixed == 0 {
                 let v = *v + dt * *a;
-                (solids.vx[i], solids.vy[i], solids.vz[i]) = (v.x, v.y, v.z);
+                (*x, *y, *z) = (v.x, v.y, v.z);
             }
-        }
+        });
     });
 }
