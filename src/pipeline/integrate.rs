@@ -8,6 +8,7 @@ use crate::store::{FluidStore, SolidStore};
 use porosph_kernels::integrate::{integrate, State};
 use porosph_kernels::phase_transport;
 use porosph_kernels::soa::Vel;
+use rayon::prelude::*;
 
 /// Pass 13: u^{n+1} = u* + dt a (a = a^p and what the later passes added),
 /// x += dt u^{n+1}; solids: x += dt v^{n+1} (PHYSICS.md §3.3).
@@ -24,13 +25,13 @@ pub(super) fn positions(cx: &mut StepCtx, fluid: &mut FluidStore, solids: &mut S
             uz: &mut fluid.uz,
         };
         integrate(s, u_star, a, dt);
-        let sv = solids.vx.iter().zip(&solids.vy).zip(&solids.vz);
-        let sx = solids.x.iter_mut().zip(solids.y.iter_mut()).zip(solids.z.iter_mut());
-        for (((x, y), z), ((vx, vy), vz)) in sx.zip(sv) {
+        let sv = (&solids.vx[..], &solids.vy[..], &solids.vz[..]).into_par_iter();
+        let sx = (&mut solids.x[..], &mut solids.y[..], &mut solids.z[..]).into_par_iter();
+        sx.zip(sv).for_each(|((x, y, z), (vx, vy, vz))| {
             *x += dt * vx;
             *y += dt * vy;
             *z += dt * vz;
-        }
+        });
     });
 }
 

@@ -94,7 +94,9 @@ pub(super) fn drift<'a>(
     let (mut bu, mut bf) = (zeros3(tmp, ni), zeros3(arena, ni));
     let (beta, beta_f): (&[&[f32]], &[f32]) = if porous {
         let beta = per_phase(tmp, &fluid.beta);
-        (beta, tmp.alloc_slice_fill_iter((0..n).map(|i| beta.iter().map(|b| b[i]).sum::<f32>())))
+        let beta_f = zeros(tmp, n);
+        beta_f.par_iter_mut().enumerate().for_each(|(i, o)| *o = beta.iter().map(|b| b[i]).sum::<f32>());
+        (beta, &*beta_f)
     } else {
         (&[], &[])
     };

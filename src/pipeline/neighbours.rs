@@ -58,9 +58,7 @@ pub(super) fn search<'a>(
         if perm.iter().enumerate().any(|(i, &j)| i as u32 != j) {
             fluid.reorder(perm, &mut w.reorder);
         }
-        for (k, &(key, _)) in keys.iter_mut().zip(&*sort) {
-            *k = key;
-        }
+        keys.par_iter_mut().zip(sort.par_iter()).for_each(|(k, &(key, _))| *k = key);
         w.fluid_grid.build(keys, support);
         let fp = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let wp = Vel { x: &walls.x, y: &walls.y, z: &walls.z };
@@ -147,8 +145,8 @@ fn solid_pairs(
         w.solid_near_of.clone_from(&w.solid_grid.cells);
     }
     for (dst, src) in w.solid_sorted.iter_mut().zip([&solids.x, &solids.y, &solids.z]) {
-        dst.clear();
-        dst.extend(w.solid_perm.iter().map(|&i| src[i as usize]));
+        dst.resize(ns, 0.0);
+        dst.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(d, &i)| *d = src[i as usize]);
     }
     if w.solid_rows.len() != ns {
         w.solid_rows.clear();

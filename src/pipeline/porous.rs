@@ -107,11 +107,11 @@ pub(super) fn partition<'a>(
         let walls_fill = zeros(tmp, n);
         iisph::kernel_sums(&pairs.fb, &walls.rest_volume, walls_fill);
         for fill in fill.chunks_mut(n.max(1)) {
-            for (f, &b) in fill.iter_mut().zip(walls_fill.iter()) {
+            fill.par_iter_mut().zip(walls_fill.par_iter()).for_each(|(f, &b)| {
                 if *f > 0.0 {
                     *f += b;
                 }
-            }
+            });
         }
         Partition { n_f, mask, fill }
     })
@@ -244,7 +244,8 @@ fn pore_state<'a>(
     let perm = &w.solid_perm;
     let cell = p.cell_volume();
     let region = |k: usize| p.porous[solids.body[perm[k] as usize] as usize].as_ref();
-    let inv_n = tmp.alloc_slice_fill_iter(n_f.iter().map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 }));
+    let inv_n = zeros(tmp, n);
+    inv_n.par_iter_mut().zip(n_f.par_iter()).for_each(|(o, &x)| *o = if x > 0.0 { 1.0 / x } else { 0.0 });
 
     // P-Eq. 15: phi_sk (sorted order), phase by phase.
     let phi = zeros(tmp, np * ns);

@@ -156,14 +156,9 @@ pub(super) fn setup<'a>(
         let rows = WallRows { vol: vols.vol_wall, sigma, u_star, vm_fluid, packed, vol_fluid, fluid_wall_gradient };
         iisph::wall_setup(&mut pairs.bf, rows, dt, src_b, diag_b);
         if ns > 0 {
-            let vol_free =
-                arena.alloc_slice_fill_iter(vols.vol_solid.iter().zip(vols.no_walls_solid).map(|(&v, &f)| {
-                    if f != 0 {
-                        0.0
-                    } else {
-                        v
-                    }
-                }));
+            let vol_free = zeros(arena, ns);
+            let free = vols.vol_solid.par_iter().zip(vols.no_walls_solid.par_iter());
+            vol_free.par_iter_mut().zip(free).for_each(|(o, (&v, &f))| *o = if f != 0 { 0.0 } else { v });
             solid_rows::wall_solid_setup(&mut pairs.bs, vols.vol_wall, vol_free, u_solid, mobility, dt, src_b, diag_b);
             let rows = SolidRows {
                 vol: vols.vol_solid,
