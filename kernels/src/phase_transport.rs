@@ -243,8 +243,7 @@ struct Pairs<'a> {
 
 /// [`outflow`] for the `G` phases `k0..k0 + G` of particle i, whose
 /// fractions are `alpha`: the outflow limits into `l`, the net outflows
-/// into `s`. `G` a constant, so
-/// that the per-phase sums stay in registers.
+/// into `s`. `G` a constant, so that the per-phase sums stay in registers.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn outflow_group<const G: usize>(

@@ -337,3 +337,17 @@ impl Simulation {
         (self.pairs.ff.pairs(), self.pairs.fb.pairs())
     }
 }
+
+/// `f(perm[k])` for every k: a per-solid value of the store (index i) in
+/// the sorted order of the solid pair lists (`perm`: sorted index -> store
+/// index), gathered in parallel into `arena`.
+fn in_sorted_order<'a, T: Copy + Default + Send + Sync>(
+    arena: &'a Bump,
+    perm: &[u32],
+    f: impl Fn(usize) -> T + Sync,
+) -> &'a mut [T] {
+    use rayon::prelude::*;
+    let out = arena.alloc_slice_fill_copy(perm.len(), T::default());
+    out.par_iter_mut().zip(perm.par_iter()).for_each(|(o, &i)| *o = f(i as usize));
+    out
+}

@@ -23,7 +23,7 @@ use super::neighbours::FluidDensity;
 use super::phases;
 use super::step::StepCtx;
 use super::timing::Pass;
-use super::{PairSet, Params, Workspace};
+use super::{in_sorted_order, PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
 use bumpalo::Bump;
 use porosph_kernels::band::{Band, BandField, BandVel};
@@ -67,10 +67,7 @@ pub(super) fn partition<'a>(
     let tmp = cx.scratch.fresh();
     let tm = &mut cx.tm;
     tm.time(Pass::Porous, || {
-        let mask = zeros(arena, w.solid_perm.len());
-        mask.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(m, &i)| {
-            *m = p.porous[solids.body[i as usize] as usize].is_some() as u32 as f32;
-        });
+        let mask = in_sorted_order(arena, &w.solid_perm, |i| p.porous[solids.body[i] as usize].is_some() as u32 as f32);
         let n_f = zeros(arena, fluid.len());
         iisph::kernel_sums(&pairs.fs, mask, n_f);
         for (alpha, beta) in outer_inner(fluid) {
@@ -90,12 +87,10 @@ pub(super) fn partition<'a>(
         let (n, cell) = (fluid.len(), p.cell_volume());
         let fill = zeros(arena, fluid.alpha.len() * n);
         for (k, fill) in fill.chunks_mut(n.max(1)).enumerate() {
-            let absorbs = zeros(tmp, w.solid_perm.len());
-            absorbs.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(a, &i)| {
-                let i = i as usize;
+            let absorbs = in_sorted_order(tmp, &w.solid_perm, |i| {
                 let r = p.porous[solids.body[i] as usize].as_ref();
                 let volume = cell * (1.0 + solids.strain_trace[i]).max(0.0);
-                *a = r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume;
+                r.is_some_and(|r| r.phases[k].is_some()) as u32 as f32 * volume
             });
             iisph::kernel_sums(&pairs.fs, absorbs, fill);
         }
@@ -272,8 +267,7 @@ fn pore_state<'a>(
     let pore = zeros(tmp, ns);
     let vol = zeros(tmp, ns);
     {
-        let mass_s = zeros(tmp, ns);
-        mass_s.par_iter_mut().zip(perm.par_iter()).for_each(|(m, &i)| *m = solids.mass[i as usize]);
+        let mass_s = in_sorted_order(tmp, perm, |i| solids.mass[i]);
         let rho_s = zeros(tmp, ns);
         iisph::kernel_sums(&pairs.ss, mass_s, rho_s);
         let sat = zeros(tmp, ns);

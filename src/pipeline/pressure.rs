@@ -14,7 +14,7 @@ use super::solid::{BodyResponse, SolidModel, SolidStats};
 use super::step::StepCtx;
 use super::timing::Pass;
 use super::volumes::Volumes;
-use super::{PairSet, Workspace};
+use super::{in_sorted_order, PairSet, Workspace};
 use crate::backend::passes::{
     Passes, PressureSystem, SolidSystem, SolidUnknowns, SolveReport, SolveSettings, Unknowns, WallInput,
 };
@@ -111,8 +111,7 @@ pub(super) fn setup<'a>(
     }
     let u_solid = Vel { x: usx, y: usy, z: usz };
     let (src_s, diag_s) = (zeros(arena, ns), zeros(arena, ns));
-    let p_s = zeros(arena, ns);
-    p_s.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(p, &i)| *p = 0.5 * solids.pressure[i as usize]);
+    let p_s = in_sorted_order(arena, &w.solid_perm, |i| 0.5 * solids.pressure[i]);
     let scratch = cx.scratch.fresh();
     tm.time(Pass::PpeSetup, || {
         // u* and V/m packed for the rows' pair loops.

@@ -6,9 +6,8 @@
 use super::phases::PhaseState;
 use super::step::StepCtx;
 use super::timing::Pass;
-use super::{PairSet, Params, Workspace};
+use super::{in_sorted_order, PairSet, Params, Workspace};
 use crate::store::{FluidStore, SolidStore, WallStore};
-use bumpalo::Bump;
 use glam::Vec3;
 use porosph_kernels::elasticity::RestState;
 use porosph_kernels::iisph::{self, FluidSums, SolidPairs};
@@ -59,16 +58,16 @@ pub(super) fn volumes<'a>(
     let (sigma, vol, vm) = (zeros(arena, n), zeros(arena, n), zeros(arena, n));
     let (sigma_b, vol_b, vol_b_full) = (zeros(arena, na), zeros(arena, na), zeros(arena, walls.len()));
     let perm = &w.solid_perm;
-    let body_s = sorted(arena, perm, |i| p.solid_group[solids.body[i] as usize]);
-    let fixed_s = sorted(arena, perm, |i| solids.fixed[i]);
-    let v0_s = sorted(arena, perm, |i| w.solid_v0[i]);
+    let body_s = in_sorted_order(arena, perm, |i| p.solid_group[solids.body[i] as usize]);
+    let fixed_s = in_sorted_order(arena, perm, |i| solids.fixed[i]);
+    let v0_s = in_sorted_order(arena, perm, |i| w.solid_v0[i]);
     let no_walls_s =
-        sorted(arena, perm, |i| u32::from(solids.fixed[i] != 0 || p.solid_granular[solids.body[i] as usize]));
+        in_sorted_order(arena, perm, |i| u32::from(solids.fixed[i] != 0 || p.solid_granular[solids.body[i] as usize]));
     let v0_free = arena.alloc_slice_fill_copy(ns, 0.0f32);
     v0_free.par_iter_mut().zip(no_walls_s.par_iter().zip(v0_s.par_iter())).for_each(|(o, (&f, &v))| {
         *o = if f != 0 { 0.0 } else { v };
     });
-    let own = sorted(arena, perm, |i| w.solid_own[i]);
+    let own = in_sorted_order(arena, perm, |i| w.solid_own[i]);
     let (sigma_s, vol_s) = (zeros(arena, ns), zeros(arena, ns));
     tm.time(Pass::Densities, || {
         let fs = (ns > 0).then_some(SolidPairs { pairs: &pairs.fs, values: &*v0_s });
@@ -170,16 +169,4 @@ pub(super) fn rest_rows(p: &Params, solids: &SolidStore) -> (Vec<f32>, Vec<f32>)
             (n.min(gamma), cell * (gamma / n).min(1.0))
         })
         .unzip()
-}
-
-/// `f(perm[k])` for every k: a per-solid value of the store (index i) in
-/// the sorted order of the pair lists, gathered in parallel.
-fn sorted<'a, T: Copy + Default + Send + Sync>(
-    arena: &'a Bump,
-    perm: &[u32],
-    f: impl Fn(usize) -> T + Sync,
-) -> &'a mut [T] {
-    let out = arena.alloc_slice_fill_copy(perm.len(), T::default());
-    out.par_iter_mut().zip(perm.par_iter()).for_each(|(o, &i)| *o = f(i as usize));
-    out
 }
