@@ -124,7 +124,7 @@ pub struct Current<'a> {
     pub perm: &'a [u32],
     /// Sorted solid positions, m.
     pub x: [&'a [f32]; 3],
-    /// The walls' positions and rest volumes.
+    /// The walls' positions.
     pub walls: Walls<'a>,
 }
 

@@ -295,7 +295,7 @@ fn step_passes<'a>(
             sb: &pairs.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
-            walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
+            walls: Walls { x: [&walls.x, &walls.y, &walls.z] },
         };
         let cg = solid::predict(cx, solids, model, terms.as_ref().and_then(|t| t.pore_stress), &near);
         st.cg_iterations = cg.iterations;
@@ -329,7 +329,7 @@ fn step_passes<'a>(
             sb: &scaled.sb,
             perm: &w.solid_perm,
             x: [sx, sy, sz],
-            walls: Walls { x: [&walls.x, &walls.y, &walls.z], volume: &walls.rest_volume },
+            walls: Walls { x: [&walls.x, &walls.y, &walls.z] },
         };
         cx.tm.time(Pass::Elasticity, || model.wall_contact(solids, &near));
     }
