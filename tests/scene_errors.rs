@@ -782,7 +782,7 @@ fn granular_edited(keys: &str) -> String {
 
 #[test]
 fn granular_solid_parses_with_its_values_and_defaults() {
-    use porosph::scene::{SolidMaterial, YieldCone};
+    use porosph::scene::{InitialStress, SolidMaterial, YieldCone};
     let scene =
         parse(&granular_edited("model = \"granular\"\nfriction_angle = 35.0\ncohesion = 200.0")).expect("valid");
     let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular: {:?}", scene.solids[0].model) };
@@ -800,6 +800,10 @@ fn granular_solid_parses_with_its_values_and_defaults() {
     let scene = parse(&granular_edited("model = \"granular\"\nwall_slip = true")).expect("valid");
     let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
     assert_eq!(g.wall_slip, [true; 3]);
+    assert_eq!(g.initial_stress, InitialStress::Zero);
+    let scene = parse(&granular_edited("model = \"granular\"\ninitial_stress = \"lithostatic\"")).expect("valid");
+    let SolidMaterial::Granular(g) = scene.solids[0].model else { panic!("not granular") };
+    assert_eq!(g.initial_stress, InitialStress::Lithostatic);
     assert_eq!(parse(&granular_edited("")).expect("valid").solids[0].model, SolidMaterial::Elastic);
 }
 
@@ -819,6 +823,8 @@ fn granular_keys_are_checked() {
     );
     assert_rejected(&g("wall_slip = 1"), "solid[0].wall_slip", "");
     assert_rejected(&g("yield_cone = \"cone\""), "solid[0].yield_cone", "");
+    assert_rejected(&g("initial_stress = \"geostatic\""), "solid[0].initial_stress", "lithostatic");
+    assert_rejected(&granular_edited("initial_stress = \"zero\""), "solid[0].initial_stress", "model is \"elastic\"");
     // The wet cohesion law needs pores, a cohesion >= 0 and n > 2.
     assert_rejected(
         &g("wet_cohesion = 500.0"),

@@ -76,7 +76,7 @@
 //! 0.974, side wall 0.964, corner 0.936; max speed 3.0e-4 m/s), and
 //! started lithostatic, 2.2 % (0.978 in every column class, the spline's
 //! bias: the discrete equilibrium is rho g depth / 1.02). The collapse
-//! runouts moved from 0.565 / 3.249 to 0.590 / 3.333 (a = 0.5 / 2).
+//! runouts moved from 0.565 / 3.249 to 0.590 / 3.35 (a = 0.5 / 2).
 //!
 //! Tried and not kept, before the edges and corners were mirrored as
 //! above: the ghost stress continued along the wall with the
@@ -256,11 +256,35 @@ struct Ghost {
 }
 
 impl Ghost {
+    /// The ghost's class: bit a set if it is reflected across axis a, for
+    /// a wall particle at offset `r` from a grain with wall normal `n`.
     #[inline(always)]
-    fn new(m: &Material, n: Vec3, r: Vec3, h: f32) -> Self {
-        let axes = [0, 1, 2].map(|a| n[a].abs() >= FACING && r[a] * n[a].signum() > 0.5 * h);
+    fn class(n: Vec3, r: Vec3, h: f32) -> usize {
+        (0..3).filter(|&a| n[a].abs() >= FACING && r[a] * n[a].signum() > 0.5 * h).map(|a| 1 << a).sum()
+    }
+
+    /// The ghost of class `c` ([`Self::class`]) of material `m`.
+    #[inline(always)]
+    fn of(c: usize, m: &Material) -> Self {
+        let axes = [0, 1, 2].map(|a| c & (1 << a) != 0);
         let slips = (0..3).all(|a| !axes[a] || m.free_slip[a]);
         Ghost { axes, slips }
+    }
+
+    /// [`Self::velocity`] as a matrix.
+    #[inline(always)]
+    fn velocity_map(&self) -> Mat3 {
+        if self.slips {
+            Mat3::from_diagonal(self.signs())
+        } else {
+            -Mat3::IDENTITY
+        }
+    }
+
+    /// [`Self::along`] as a matrix.
+    #[inline(always)]
+    fn along_map(&self) -> Mat3 {
+        Mat3::from_diagonal(self.along(Vec3::ONE))
     }
 
     /// +-1 per axis: -1 on the axes it is reflected across.
@@ -350,22 +374,35 @@ pub fn stress_update(
                 let h = vol.cbrt();
                 let n = wall_normal(blk, q);
                 let xi = Vec3::new(grains.x[0][i], grains.x[1][i], grains.x[2][i]);
-                let ghost = |p: usize| {
+                // The wall pairs summed by ghost class: sum_b grad W_ib
+                // and sum_b r_b (x) grad W_ib, r_b = x_b - x_i, so that
+                // the sweeps below need no pass over the pairs
+                // (sum_b M(L t_b) (x) grad W_ib = M L P sum_b r_b (x) grad
+                // W_ib, with M and P the class's mirror and projection
+                // along the walls).
+                let mut gsum = [Vec3::ZERO; 8];
+                let mut rg = [Mat3::ZERO; 8];
+                for p in blk.range(q) {
                     let k = blk.j[p] as usize;
                     let r = Vec3::new(walls.x[0][k], walls.x[1][k], walls.x[2][k]) - xi;
-                    (Ghost::new(m, n, r, h), r, Vec3::new(blk.gx[p], blk.gy[p], blk.gz[p]))
-                };
-                for p in blk.range(q) {
-                    let (gh, _, g) = ghost(p);
-                    l += outer(vol * (gh.velocity(v[i]) - v[i]), g);
+                    let g = Vec3::new(blk.gx[p], blk.gy[p], blk.gz[p]);
+                    let c = Ghost::class(n, r, h);
+                    gsum[c] += g;
+                    rg[c] += outer(r, g);
+                }
+                let mut maps = [(Mat3::ZERO, Mat3::ZERO); 8];
+                for c in (0..8).filter(|&c| gsum[c] != Vec3::ZERO || rg[c] != Mat3::ZERO) {
+                    let gh = Ghost::of(c, m);
+                    l += outer(vol * (gh.velocity(v[i]) - v[i]), gsum[c]);
+                    maps[c] = (vol * gh.velocity_map(), gh.along_map() * rg[c]);
                 }
                 let l_mirror = l;
                 let mut lt = l;
                 for _ in 0..MIRROR_SWEEPS {
                     let mut extra = Mat3::ZERO;
-                    for p in blk.range(q) {
-                        let (gh, r, g) = ghost(p);
-                        extra += outer(vol * gh.velocity(lt * gh.along(r)), g);
+                    for c in (0..8).filter(|&c| rg[c] != Mat3::ZERO) {
+                        let (mv, pr) = maps[c];
+                        extra += mv * lt * pr;
                     }
                     lt = l_mirror + extra;
                 }
@@ -456,18 +493,26 @@ pub fn accelerate(
             if !walls.x[0].is_empty() && !blk.range(q).is_empty() {
                 let n = wall_normal(blk, q);
                 let m = &materials[mat];
+                // S_b = M(S_i) - rho_i (g . (x_b - x_i)) g g / |g|^2: the
+                // weight part per pair, the mirror part by ghost class.
+                let mut gsum = [Vec3::ZERO; 8];
+                let mut weight = 0.0;
                 for p in blk.range(q) {
                     let k = blk.j[p] as usize;
                     let gw = Vec3::new(blk.gx[p], blk.gy[p], blk.gz[p]);
                     let xb = pos(walls.x, k);
-                    let gh = Ghost::new(m, n, xb - xi, visc.h);
-                    // S_b = M(S_i) - rho_i (g . (x_b - x_i)) g g / |g|^2.
-                    let weight = -rho_i * g.dot(xb - xi) * g_hat.dot(gw);
-                    fw += vi * vi * ((si + gh.stress(si)) * gw + weight * g_hat);
+                    let cls = Ghost::class(n, xb - xi, visc.h);
+                    let gh = Ghost::of(cls, m);
+                    gsum[cls] += gw;
+                    weight -= rho_i * g.dot(xb - xi) * g_hat.dot(gw);
                     let pi = viscous(visc.alpha, c, visc.h, rho_i, xi - xb, v[i] - gh.velocity(v[i]));
                     let fk = -mi * mi * pi * gw;
                     fv += if gh.slips { gh.across(fk) } else { fk };
                 }
+                for (cls, gw) in gsum.iter().enumerate().filter(|(_, gw)| **gw != Vec3::ZERO) {
+                    fw += (si + Ghost::of(cls, m).stress(si)) * *gw;
+                }
+                fw = vi * vi * (fw + weight * g_hat);
             }
             *o = v[i] + dt * (g + (f + fw + fv) / mi);
         }

@@ -13,7 +13,7 @@
 //! walls' and other bodies' pressure forces to the last sub-step's velocity.
 
 use super::solid::{Current, Peer2018, SolidModel, SolidStats};
-use crate::scene::{Scene, SolidMaterial, YieldCone};
+use crate::scene::{InitialStress, Scene, SolidMaterial, YieldCone};
 use crate::store::SolidStore;
 use glam::{Mat3, Vec3};
 use porosph_kernels::blocks::BLOCK;
@@ -267,6 +267,43 @@ impl Granular {
             + self.s_plastic.capacity())
             + 36 * self.s_sigma.capacity()
             + 12 * (self.s_v[0].capacity() + self.s_v[1].capacity())
+    }
+}
+
+/// Sets the stress of the granular bodies with `initial_stress =
+/// "lithostatic"` (the others keep zero): sand at rest under its own weight,
+/// vertical stress -rho |g| depth along gravity and K0 = 1 - sin(phi) of it
+/// across (Jaky's coefficient of earth pressure at rest), tension positive.
+/// The depth is below the body's own top: the highest particle of its
+/// column (the particles of the body in the same lattice cell across
+/// gravity) + h/2; nothing above the body loads it.
+pub fn set_initial_stress(scene: &Scene, gravity: Vec3, h: f32, s: &mut SolidStore) {
+    let g = gravity.length();
+    if g == 0.0 {
+        return;
+    }
+    let down = gravity / g;
+    let (e1, e2) = down.any_orthonormal_pair();
+    let vertical = Mat3::from_cols(down * down.x, down * down.y, down * down.z);
+    let column = |x: Vec3| ((x.dot(e1) / h).floor() as i64, (x.dot(e2) / h).floor() as i64);
+    for (b, solid) in scene.solids.iter().enumerate() {
+        let SolidMaterial::Granular(gr) = solid.model else { continue };
+        if gr.initial_stress != InitialStress::Lithostatic {
+            continue;
+        }
+        let members: Vec<(usize, Vec3)> =
+            (0..s.len()).filter(|&i| s.body[i] as usize == b).map(|i| (i, Vec3::new(s.x[i], s.y[i], s.z[i]))).collect();
+        let mut top = std::collections::HashMap::new();
+        for &(_, x) in &members {
+            let height = -x.dot(down);
+            top.entry(column(x)).and_modify(|t: &mut f32| *t = t.max(height)).or_insert(height);
+        }
+        let k0 = 1.0 - gr.friction_angle.to_radians().sin();
+        for &(i, x) in &members {
+            let depth = top[&column(x)] + 0.5 * h + x.dot(down);
+            let sv = -solid.density * g * depth;
+            s.set_granular_stress(i, k0 * sv * (Mat3::IDENTITY - vertical) + sv * vertical);
+        }
     }
 }
 

@@ -280,6 +280,7 @@ impl Simulation {
         solids.body = sampled_solids.body;
         solids.fixed = sampled_solids.fixed;
         solids.id = ((nf + nw) as u32..(nf + nw + ns) as u32).collect();
+        super::granular::set_initial_stress(&scene, glam::Vec3::from(params.gravity), params.h, &mut solids);
         let solid_model = params.solid_model(&scene, &solids);
 
         let mut work = wall_workspace(&mut walls, &params);

@@ -553,6 +553,20 @@ pub enum YieldCone {
     TriaxialCompression,
 }
 
+/// `initial_stress`: the stress a granular solid starts with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum InitialStress {
+    /// `"zero"` (default): released from no stress, as if its weight were
+    /// switched on at the start (it settles, ringing in its elastic modes).
+    #[default]
+    Zero,
+    /// `"lithostatic"`: sand at rest under its own weight (a column behind
+    /// a gate): vertical stress rho g depth under the body's own top, and
+    /// (1 - sin phi) of it sideways (Jaky's K0).
+    Lithostatic,
+}
+
 /// How a solid deforms, with the model's parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SolidMaterial {
@@ -583,6 +597,8 @@ pub struct Granular {
     /// Per axis x, y, z: the walls facing it are frictionless (free slip)
     /// for this solid; else no slip.
     pub wall_slip: [bool; 3],
+    /// The stress it starts with.
+    pub initial_stress: InitialStress,
 }
 
 /// `[solid.porous]`: a porous solid (P §4, PHYSICS.md §4.2, §7).

@@ -448,6 +448,7 @@ impl Cx<'_> {
             ("wet_cohesion", s.wet_cohesion.is_some()),
             ("suction_n", s.suction_n.is_some()),
             ("saturation", s.saturation.is_some()),
+            ("initial_stress", s.initial_stress.is_some()),
         ];
         if s.model == SolidModelChoice::Elastic {
             if let Some((key, _)) = keys.iter().find(|(_, given)| *given) {
@@ -467,6 +468,7 @@ impl Cx<'_> {
             suction_n: s.suction_n.unwrap_or(4.0),
             saturation: s.saturation,
             wall_slip: self.wall_slip(path, s.wall_slip.as_ref())?,
+            initial_stress: s.initial_stress.unwrap_or_default(),
         };
         if !(g.friction_angle > 0.0 && g.friction_angle < 90.0) {
             let key = path.key("friction_angle");
