@@ -166,8 +166,12 @@ fn lithostatic_sand_column_stays_at_rest() {
     let mut sim = Simulation::new(scene_text(&text));
     let (err0, ratio0, _) = vertical_stress_error(&sim, d, 3.0 * d, 1600.0);
     assert!(err0 < 1e-5 && (ratio0 - 1.0).abs() < 1e-5, "the start: error {err0}, ratio {ratio0}");
-    let sxx = sim.solids.sxx.iter().zip(&sim.solids.syy).map(|(x, y)| x / y).fold(0.0f32, f32::max);
-    assert!((sxx - 0.5).abs() < 1e-5, "K0 {sxx}");
+    let s = &sim.solids;
+    for i in 0..s.len() {
+        let (kx, kz) = (s.sxx[i] / s.syy[i], s.szz[i] / s.syy[i]);
+        assert!((kx - 0.5).abs() < 1e-5 && (kz - 0.5).abs() < 1e-5, "grain {i}: K0 {kx}, {kz}");
+        assert!(s.sxy[i] == 0.0 && s.sxz[i] == 0.0 && s.syz[i] == 0.0, "grain {i}: shear at rest");
+    }
     common::run_until(&mut sim, 1.0);
     let (err, ratio, n) = vertical_stress_error(&sim, d, 3.0 * d, 1600.0);
     let speed = sim.max_speed();

@@ -41,7 +41,11 @@
 //! the weight part bounded by the grain's own vertical stress S_vv =
 //! g_hat . S_i g_hat: |rho_i g . (x_b - x_i)| <= max(-S_vv, 0), so that the
 //! ghost's vertical stress lies between 0 and 2 S_vv. A grain that carries
-//! no weight (alone, or at a free surface) gets none from the walls.
+//! no weight (alone, or at a free surface) gets none from the walls. The
+//! upper end is a bound, not the lithostatic value: within two spacings of
+//! a free surface a ghost deeper than the grain by more than the grain's
+//! depth gets less weight than rho g (its depth) (the column test's top 3 d
+//! beside the walls; below them it does not bind).
 //! Unbounded, the term pushed every grain up at every wall particle above
 //! or beside it (-rho_i (g . r_b)(g_hat . grad W_ib) >= 0 for each), about
 //! 0.15 g beside a vertical wall and 0.5 g under a ceiling for a grain
