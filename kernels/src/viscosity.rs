@@ -3,6 +3,7 @@
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
 use crate::blocks::{sum_f64, BLOCK};
+use crate::drift::PACKED_PHASES;
 use crate::lanes::{pair_vectors, sum, Field3, Packed, PairVec, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
@@ -27,6 +28,11 @@ pub struct ViscosityInput<'a> {
     /// mu_i, read without a gather per pair (the viscosity pass's gathers
     /// set its cost; bench/RESULTS.md, "One viscosity").
     pub mu_uniform: bool,
+    /// `[alpha_0, alpha_1, alpha_2, mu_m]` per particle ([`pack_phases`]),
+    /// where the caller packed them (at most [`PACKED_PHASES`] phases): the
+    /// mixture's pair weights and mu_j are then read with one load a pair
+    /// instead of a gather per phase and one for mu (the same values).
+    pub phases: Option<&'a [Packed]>,
     /// Particle spacing h, m (regulariser 0.01 h^2).
     pub h: f32,
     pub gravity: [f32; 3],
@@ -35,37 +41,82 @@ pub struct ViscosityInput<'a> {
 
 /// The phase pair weight w_ij of P-Eq. 23 for a vector of pairs.
 trait PairWeight: Sync {
-    /// `c` times w_ij for particle i and the pairs of `v`.
-    fn apply(&self, c: F, i: usize, v: &PairVec) -> F;
+    /// mu_j and w_ij for particle i and the pairs of `v` (`None` for w_ij
+    /// = 1: the coefficient is then used without a multiply).
+    fn neighbours(&self, inp: &ViscosityInput, i: usize, v: &PairVec) -> (F, Option<F>);
 }
 
-/// One phase: w_ij = 1, and `c` is returned as it is (no multiply), so
-/// the one-phase result is exactly that of the Morris form without weights.
+/// mu_j of the pairs of `v`: mu_i where every mu is the same.
+#[inline(always)]
+fn mu_j(inp: &ViscosityInput, i: usize, v: &PairVec) -> F {
+    if inp.mu_uniform {
+        F::splat(inp.mu[i])
+    } else {
+        v.gather(inp.mu)
+    }
+}
+
+/// One phase: w_ij = 1, and the coefficient is returned as it is (no
+/// multiply), so the one-phase result is exactly that of the Morris form
+/// without weights.
 struct Unweighted;
 
 impl PairWeight for Unweighted {
     #[inline(always)]
-    fn apply(&self, c: F, _: usize, _: &PairVec) -> F {
-        c
+    fn neighbours(&self, inp: &ViscosityInput, i: usize, v: &PairVec) -> (F, Option<F>) {
+        (mu_j(inp, i, v), None)
     }
 }
 
 /// Several phases: w_ij = sum_k 2 alpha_ik alpha_jk / (alpha_ik + alpha_jk)
 /// (PHYSICS.md §5: the harmonic mean, 1 for two particles of the same
 /// mixture, 0 for two pure particles of different phases; a phase absent
-/// from both particles adds 0).
+/// from both particles adds 0). alpha_jk and mu_j come from
+/// [`ViscosityInput::phases`] where it is given, else by a gather each.
 struct PhaseWeights<'a>(&'a [&'a [f32]]);
+
+/// The harmonic pair weight of one phase, added to `w`.
+#[inline(always)]
+fn add_weight(w: &mut F, ai: F, aj: F) {
+    *w += F::splat(2.0) * ai * aj / (ai + aj).max(F::splat(f32::MIN_POSITIVE));
+}
 
 impl PairWeight for PhaseWeights<'_> {
     #[inline(always)]
-    fn apply(&self, c: F, i: usize, v: &PairVec) -> F {
+    fn neighbours(&self, inp: &ViscosityInput, i: usize, v: &PairVec) -> (F, Option<F>) {
         let mut w = F::ZERO;
-        for a in self.0 {
-            let (ai, aj) = (F::splat(a[i]), v.gather(a));
-            w += F::splat(2.0) * ai * aj / (ai + aj).max(F::splat(f32::MIN_POSITIVE));
+        if let Some(packed) = inp.phases {
+            let [a0, a1, a2, mu] = v.gather4(packed);
+            for (a, aj) in self.0.iter().zip([a0, a1, a2]) {
+                add_weight(&mut w, F::splat(a[i]), aj);
+            }
+            return (mu, Some(w));
         }
-        c * w
+        for a in self.0 {
+            add_weight(&mut w, F::splat(a[i]), v.gather(a));
+        }
+        (mu_j(inp, i, v), Some(w))
     }
+}
+
+/// `[alpha_0, alpha_1, alpha_2, mu_m]` per particle (0 past the phases)
+/// into `out`, for [`ViscosityInput::phases`]; `None` for more than
+/// [`PACKED_PHASES`] phases.
+pub fn pack_phases<'o>(alpha: &[&[f32]], mu: &[f32], out: &'o mut [Packed]) -> Option<&'o [Packed]> {
+    if alpha.len() > PACKED_PHASES {
+        return None;
+    }
+    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
+        for (q, o) in o.iter_mut().enumerate() {
+            let i = b * BLOCK + q;
+            *o = [0.0; 4];
+            for (k, a) in alpha.iter().enumerate() {
+                o[k] = a[i];
+            }
+            o[3] = mu[i];
+        }
+    });
+    Some(out)
 }
 
 /// The pair coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /
@@ -84,9 +135,12 @@ fn pair_coefficients<W: PairWeight>(inp: &ViscosityInput, blk: &PairBlock, v: &P
     let r2 = dx * dx + dy * dy + dz * dz;
     // (x_j - x_i).grad W_ij = -x_ij.grad W_ij >= 0
     let xg = -(dx * v.load(&blk.gx) + dy * v.load(&blk.gy) + dz * v.load(&blk.gz));
-    let mu_i = F::splat(inp.mu[i]);
-    let mu_j = if inp.mu_uniform { mu_i } else { v.gather(inp.mu) };
-    wt.apply((mu_i + mu_j) * xg / (r2 + F::splat(eps)), i, v)
+    let (mu_j, w) = wt.neighbours(inp, i, v);
+    let c = (F::splat(inp.mu[i]) + mu_j) * xg / (r2 + F::splat(eps));
+    match w {
+        Some(w) => c * w,
+        None => c,
+    }
 }
 
 /// a^visc_i (P-Eq. 23) of particle `i`, the query `q` of block `blk`.

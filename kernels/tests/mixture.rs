@@ -295,6 +295,7 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
         rest_density: &rho,
         mu: &mu,
         mu_uniform: false,
+        phases: None,
         h: 1.0,
         gravity: [0.0, -9.81, 0.0],
         dt: 0.01,
@@ -684,4 +685,63 @@ fn pressure_rows_read_packed_u_star_and_vm_bitwise() {
         assert!(a.iter().any(|&v| v != 0.0), "output {k} is all zero");
         assert!(a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits()), "output {k}");
     }
+}
+
+/// The mixture viscosity with its phase fractions and mu read packed
+/// (`ViscosityInput::phases`, one load a pair) is bit for bit the one with
+/// a gather per phase and for mu: one to three phases of random fractions
+/// (some pure particles, whose weights with other phases are 0), a mu
+/// that differs from particle to particle, x and u packed or not.
+#[test]
+fn mixture_viscosity_with_packed_phases_is_the_gathered_one_bit_for_bit() {
+    let mut rng = Lcg(11);
+    let lat = lattice(10, &mut rng);
+    let n = lat.x.len();
+    let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
+    let rho: Vec<f32> = (0..n).map(|_| 800.0 + 400.0 * rng.next()).collect();
+    let mu: Vec<f32> = (0..n).map(|_| 0.01 + rng.next()).collect();
+    let xp: Vec<Packed> = (0..n).map(|i| [lat.x[i], lat.y[i], lat.z[i], 0.0]).collect();
+    let up: Vec<Packed> = (0..n).map(|i| [u[0][i], u[1][i], u[2][i], 0.0]).collect();
+    for np in 1..=3 {
+        let mut alpha = fractions(n, np, &mut rng);
+        for i in (0..n).step_by(7) {
+            for (k, a) in alpha.iter_mut().enumerate() {
+                a[i] = if k == i % np { 1.0 } else { 0.0 };
+            }
+        }
+        let alpha: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+        let mut pk = vec![[0.0f32; 4]; n];
+        let phases = porosph_kernels::viscosity::pack_phases(&alpha, &mu, &mut pk);
+        assert!(phases.is_some());
+        for packed in [None, Some([&xp[..], &up[..]])] {
+            let inp = ViscosityInput {
+                ff: &lat.ff,
+                x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
+                u: Vel { x: &u[0], y: &u[1], z: &u[2] },
+                packed,
+                rest_density: &rho,
+                mu: &mu,
+                mu_uniform: false,
+                phases: None,
+                h: 1.0,
+                gravity: [0.0, -9.81, 0.0],
+                dt: 0.01,
+            };
+            let run = |inp: &ViscosityInput| {
+                let (mut s, mut a): ([Vec<f32>; 3], [Vec<f32>; 3]) =
+                    (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
+                let ([sx, sy, sz], [ax, ay, az]) = (&mut s, &mut a);
+                predict_velocity_mixture(inp, &alpha, VelMut { x: sx, y: sy, z: sz }, VelMut { x: ax, y: ay, z: az });
+                (s, a)
+            };
+            let (s0, a0) = run(&inp);
+            let (s1, a1) = run(&ViscosityInput { phases, ..inp });
+            for c in 0..3 {
+                let same = |p: &[f32], q: &[f32]| p.iter().zip(q).all(|(p, q)| p.to_bits() == q.to_bits());
+                assert!(same(&s0[c], &s1[c]) && same(&a0[c], &a1[c]), "{np} phases, component {c}");
+            }
+            assert!(a0[0].iter().any(|&x| x != 0.0));
+        }
+    }
+    assert!(porosph_kernels::viscosity::pack_phases(&[&mu[..]; 4], &mu, &mut vec![[0.0; 4]; n]).is_none());
 }

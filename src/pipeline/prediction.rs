@@ -14,7 +14,7 @@ use porosph_kernels::lanes::Packed;
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::viscosity::{
-    predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
+    pack_phases, predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
 };
 use rayon::prelude::*;
 
@@ -48,6 +48,9 @@ pub(super) fn predict<'a>(
     tm.time(Pass::Viscosity, || {
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
+        let alpha = &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
+        let phases =
+            if mixture { pack_phases(alpha, ph.mu, scratch.alloc_slice_fill_copy(n, [0.0f32; 4])) } else { None };
         let inp = ViscosityInput {
             ff,
             x,
@@ -56,12 +59,13 @@ pub(super) fn predict<'a>(
             rest_density: ph.rest_density,
             mu: ph.mu,
             mu_uniform: ph.mu.par_iter().all(|&m| m == ph.mu[0]),
+            phases,
             h: p.h,
             gravity: p.gravity,
             dt,
         };
         if p.implicit_viscosity && n > 0 {
-            let alpha = mixture.then(|| &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice())));
+            let alpha = mixture.then_some(alpha);
             let z3 = || [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
             let scratch = ImplicitScratch {
                 diag: zeros(arena, n),
@@ -84,7 +88,6 @@ pub(super) fn predict<'a>(
                 }
             }
         } else if mixture {
-            let alpha = arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
             let u_star = VelMut { x: &mut *usx, y: &mut *usy, z: &mut *usz };
             let a_visc = VelMut { x: &mut *avx, y: &mut *avy, z: &mut *avz };
             predict_velocity_mixture(&inp, alpha, u_star, a_visc);
