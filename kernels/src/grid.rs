@@ -66,6 +66,8 @@ pub struct CellGrid {
     pub cells: Vec<u64>,
     /// `starts[c]..starts[c + 1]` are the particles of cell `c`.
     pub starts: Vec<u32>,
+    /// The most particles in one cell.
+    pub fullest: u32,
     /// Open-addressing table: cell index + 1, 0 = empty.
     table: Vec<u32>,
     shift: u32,
@@ -91,6 +93,7 @@ impl CellGrid {
             }
         }
         self.starts.push(sorted_keys.len() as u32);
+        self.fullest = self.starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
         let want = (self.cells.len() * 2).next_power_of_two().max(16);
         self.table.clear();
         self.table.resize(want, 0);

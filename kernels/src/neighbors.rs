@@ -309,6 +309,7 @@ fn build<const W: bool>(
         None => (&[][..], &mut [][..]),
     };
     let with_sums = !out.is_empty();
+    let room = Candidates::room(grid, target.len());
     let blocks = lists.blocks[..nblocks].par_iter_mut();
     let out = if with_sums {
         rayon::iter::Either::Left(out.par_chunks_mut(BLOCK).map(Some))
@@ -317,6 +318,7 @@ fn build<const W: bool>(
     };
     blocks.zip(out).enumerate().for_each(|(b, (blk, out))| {
         CANDIDATES.with_borrow_mut(|cand| {
+            cand.reserve_room(room);
             let lo = b * BLOCK;
             let sums = out.map(|o| (val, o));
             let caps = blk.capacities();
@@ -443,6 +445,28 @@ thread_local! {
     /// Each worker's candidate list, kept between calls so that a step in
     /// steady state allocates nothing (tests/no_alloc.rs).
     static CANDIDATES: std::cell::RefCell<Candidates> = std::cell::RefCell::default();
+}
+
+impl Candidates {
+    /// Room for the candidates of any query cell of `grid`'s targets: the
+    /// particles of 27 cells, at most 27 times its fullest cell and at
+    /// most all `targets`, and the padding, rounded up to a power of two.
+    fn room(grid: &CellGrid, targets: usize) -> usize {
+        ((27 * grid.fullest as usize).min(targets) + LANES).next_power_of_two()
+    }
+
+    /// Makes room for `room` candidates. Every block takes it before its
+    /// queries, so a worker's list has the room of every search it worked
+    /// on, whichever blocks it got. Grown instead by what its blocks
+    /// happened to need, a worker's list grew at a step that depended on
+    /// rayon's schedule, not on the particles (tests/no_alloc.rs counts a
+    /// step's allocations).
+    fn reserve_room(&mut self, room: usize) {
+        for v in [&mut self.x, &mut self.y, &mut self.z] {
+            v.reserve(room.saturating_sub(v.len()));
+        }
+        self.j.reserve(room.saturating_sub(self.j.len()));
+    }
 }
 
 /// The pairs of the queries `rows` (one cache block) into `blk`.
