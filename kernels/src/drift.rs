@@ -121,7 +121,8 @@ pub struct PhaseVelocityInput<'a> {
 pub const PACKED_PHASES: usize = 3;
 
 /// `[alpha_0, alpha_1, alpha_2, p / alpha_f]` per particle (0 past the
-/// phases and without `pf`) into `out`, for [`PhaseVelocityInput::packed`];
+/// phases and without `pf`) into `out`, for [`PhaseVelocityInput::packed`]
+/// (with mu_m as `pf`, for [`crate::viscosity::ViscosityInput::phases`]);
 /// `None` for more than [`PACKED_PHASES`] phases.
 pub fn pack_fractions<'o>(alpha: &[&[f32]], pf: Option<&[f32]>, out: &'o mut [Packed]) -> Option<&'o [Packed]> {
     if alpha.len() > PACKED_PHASES {

@@ -3,7 +3,6 @@
 //! u* = u + dt (g + a^visc) (PHYSICS.md §2.4, item 4).
 
 use crate::blocks::{sum_f64, BLOCK};
-use crate::drift::PACKED_PHASES;
 use crate::lanes::{pair_vectors, sum, Field3, Packed, PairVec, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::soa::{Vel, VelMut};
@@ -28,8 +27,9 @@ pub struct ViscosityInput<'a> {
     /// mu_i, read without a gather per pair (the viscosity pass's gathers
     /// set its cost; bench/RESULTS.md, "One viscosity").
     pub mu_uniform: bool,
-    /// `[alpha_0, alpha_1, alpha_2, mu_m]` per particle ([`pack_phases`]),
-    /// where the caller packed them (at most [`PACKED_PHASES`] phases): the
+    /// `[alpha_0, alpha_1, alpha_2, mu_m]` per particle
+    /// ([`crate::drift::pack_fractions`] with mu_m as its fourth entry),
+    /// where the caller packed them (at most three phases): the
     /// mixture's pair weights and mu_j are then read with one load a pair
     /// instead of a gather per phase and one for mu (the same values).
     pub phases: Option<&'a [Packed]>,
@@ -97,26 +97,6 @@ impl PairWeight for PhaseWeights<'_> {
         }
         (mu_j(inp, i, v), Some(w))
     }
-}
-
-/// `[alpha_0, alpha_1, alpha_2, mu_m]` per particle (0 past the phases)
-/// into `out`, for [`ViscosityInput::phases`]; `None` for more than
-/// [`PACKED_PHASES`] phases.
-pub fn pack_phases<'o>(alpha: &[&[f32]], mu: &[f32], out: &'o mut [Packed]) -> Option<&'o [Packed]> {
-    if alpha.len() > PACKED_PHASES {
-        return None;
-    }
-    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, o)| {
-        for (q, o) in o.iter_mut().enumerate() {
-            let i = b * BLOCK + q;
-            *o = [0.0; 4];
-            for (k, a) in alpha.iter().enumerate() {
-                o[k] = a[i];
-            }
-            o[3] = mu[i];
-        }
-    });
-    Some(out)
 }
 
 /// The pair coefficients k_ij = w_ij (mu_i + mu_j) (x_j - x_i).grad W_ij /

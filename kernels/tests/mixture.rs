@@ -63,6 +63,14 @@ fn lattice(n: usize, rng: &mut Lcg) -> Lattice {
     Lattice { x, y, z, ff }
 }
 
+/// The lattice of 10^3 particles and random velocities in [-0.5, 0.5) m/s.
+fn lattice_with_velocities(rng: &mut Lcg) -> (Lattice, Vec<Vec<f32>>) {
+    let lat = lattice(10, rng);
+    let n = lat.x.len();
+    let u = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
+    (lat, u)
+}
+
 /// Random fractions (a partition of unity, a third of the particles pure
 /// in one phase) for `np` phases.
 fn fractions(n: usize, np: usize, rng: &mut Lcg) -> Vec<Vec<f32>> {
@@ -620,9 +628,8 @@ fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
 #[test]
 fn pressure_rows_read_packed_u_star_and_vm_bitwise() {
     let mut rng = Lcg(11);
-    let lat = lattice(10, &mut rng);
+    let (lat, u) = lattice_with_velocities(&mut rng);
     let n = lat.x.len();
-    let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
     let vol: Vec<f32> = (0..n).map(|_| 0.9 + 0.2 * rng.next()).collect();
     let vm: Vec<f32> = (0..n).map(|_| 1e-3 * (0.9 + 0.2 * rng.next())).collect();
     let sigma: Vec<f32> = (0..n).map(|_| 0.95 + 0.1 * rng.next()).collect();
@@ -695,9 +702,8 @@ fn pressure_rows_read_packed_u_star_and_vm_bitwise() {
 #[test]
 fn mixture_viscosity_with_packed_phases_is_the_gathered_one_bit_for_bit() {
     let mut rng = Lcg(11);
-    let lat = lattice(10, &mut rng);
+    let (lat, u) = lattice_with_velocities(&mut rng);
     let n = lat.x.len();
-    let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
     let rho: Vec<f32> = (0..n).map(|_| 800.0 + 400.0 * rng.next()).collect();
     let mu: Vec<f32> = (0..n).map(|_| 0.01 + rng.next()).collect();
     let xp: Vec<Packed> = (0..n).map(|i| [lat.x[i], lat.y[i], lat.z[i], 0.0]).collect();
@@ -711,7 +717,7 @@ fn mixture_viscosity_with_packed_phases_is_the_gathered_one_bit_for_bit() {
         }
         let alpha: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
         let mut pk = vec![[0.0f32; 4]; n];
-        let phases = porosph_kernels::viscosity::pack_phases(&alpha, &mu, &mut pk);
+        let phases = drift::pack_fractions(&alpha, Some(&mu), &mut pk);
         assert!(phases.is_some());
         for packed in [None, Some([&xp[..], &up[..]])] {
             let inp = ViscosityInput {
@@ -743,5 +749,4 @@ fn mixture_viscosity_with_packed_phases_is_the_gathered_one_bit_for_bit() {
             assert!(a0[0].iter().any(|&x| x != 0.0));
         }
     }
-    assert!(porosph_kernels::viscosity::pack_phases(&[&mu[..]; 4], &mu, &mut vec![[0.0; 4]; n]).is_none());
 }

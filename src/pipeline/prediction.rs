@@ -10,11 +10,12 @@ use super::timing::Pass;
 use crate::store::FluidStore;
 use bumpalo::Bump;
 use porosph_kernels::blocks::{nblocks, BLOCK};
+use porosph_kernels::drift::pack_fractions;
 use porosph_kernels::lanes::Packed;
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::viscosity::{
-    pack_phases, predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
+    predict_velocity, predict_velocity_implicit, predict_velocity_mixture, ImplicitScratch, ViscosityInput,
 };
 use rayon::prelude::*;
 
@@ -49,8 +50,11 @@ pub(super) fn predict<'a>(
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let alpha = &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
-        let phases =
-            if mixture { pack_phases(alpha, ph.mu, scratch.alloc_slice_fill_copy(n, [0.0f32; 4])) } else { None };
+        let phases = if mixture {
+            pack_fractions(alpha, Some(ph.mu), scratch.alloc_slice_fill_copy(n, [0.0f32; 4]))
+        } else {
+            None
+        };
         let inp = ViscosityInput {
             ff,
             x,
