@@ -71,6 +71,24 @@ fn lattice_with_velocities(rng: &mut Lcg) -> (Lattice, Vec<Vec<f32>>) {
     (lat, u)
 }
 
+/// The viscosity pass's input on `lat` with velocities `u`, rest
+/// densities `rho` and viscosities `mu`, nothing packed, mu read per pair.
+fn viscosity_input<'a>(lat: &'a Lattice, u: &'a [Vec<f32>], rho: &'a [f32], mu: &'a [f32]) -> ViscosityInput<'a> {
+    ViscosityInput {
+        ff: &lat.ff,
+        x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
+        u: Vel { x: &u[0], y: &u[1], z: &u[2] },
+        packed: None,
+        rest_density: rho,
+        mu,
+        mu_uniform: false,
+        phases: None,
+        h: 1.0,
+        gravity: [0.0, -9.81, 0.0],
+        dt: 0.01,
+    }
+}
+
 /// Random fractions (a partition of unity, a third of the particles pure
 /// in one phase) for `np` phases.
 fn fractions(n: usize, np: usize, rng: &mut Lcg) -> Vec<Vec<f32>> {
@@ -295,19 +313,7 @@ fn mixture_viscosity_with_one_phase_is_the_one_phase_viscosity() {
     let u: Vec<Vec<f32>> = (0..3).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
     let rho = vec![1000.0f32; n];
     let mu = vec![0.5f32; n];
-    let inp = ViscosityInput {
-        ff: &lat.ff,
-        x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
-        u: Vel { x: &u[0], y: &u[1], z: &u[2] },
-        packed: None,
-        rest_density: &rho,
-        mu: &mu,
-        mu_uniform: false,
-        phases: None,
-        h: 1.0,
-        gravity: [0.0, -9.81, 0.0],
-        dt: 0.01,
-    };
+    let inp = viscosity_input(&lat, &u, &rho, &mu);
     let mut a: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut b: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut av: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
@@ -720,19 +726,7 @@ fn mixture_viscosity_with_packed_phases_is_the_gathered_one_bit_for_bit() {
         let phases = drift::pack_fractions(&alpha, Some(&mu), &mut pk);
         assert!(phases.is_some());
         for packed in [None, Some([&xp[..], &up[..]])] {
-            let inp = ViscosityInput {
-                ff: &lat.ff,
-                x: Vel { x: &lat.x, y: &lat.y, z: &lat.z },
-                u: Vel { x: &u[0], y: &u[1], z: &u[2] },
-                packed,
-                rest_density: &rho,
-                mu: &mu,
-                mu_uniform: false,
-                phases: None,
-                h: 1.0,
-                gravity: [0.0, -9.81, 0.0],
-                dt: 0.01,
-            };
+            let inp = ViscosityInput { packed, ..viscosity_input(&lat, &u, &rho, &mu) };
             let run = |inp: &ViscosityInput| {
                 let (mut s, mut a): ([Vec<f32>; 3], [Vec<f32>; 3]) =
                     (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));

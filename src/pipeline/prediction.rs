@@ -10,7 +10,7 @@ use super::timing::Pass;
 use crate::store::FluidStore;
 use bumpalo::Bump;
 use porosph_kernels::blocks::{nblocks, BLOCK};
-use porosph_kernels::drift::pack_fractions;
+use porosph_kernels::drift::{pack_fractions, PACKED_PHASES};
 use porosph_kernels::lanes::Packed;
 use porosph_kernels::neighbors::PairLists;
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
@@ -50,7 +50,7 @@ pub(super) fn predict<'a>(
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
         let u = Vel { x: &fluid.ux, y: &fluid.uy, z: &fluid.uz };
         let alpha = &*arena.alloc_slice_fill_iter(fluid.alpha.iter().map(|a| a.as_slice()));
-        let phases = if mixture {
+        let phases = if mixture && alpha.len() <= PACKED_PHASES {
             pack_fractions(alpha, Some(ph.mu), scratch.alloc_slice_fill_copy(n, [0.0f32; 4]))
         } else {
             None
