@@ -1,7 +1,11 @@
 //! The warm start of the pressure solve (pass 4c, PHYSICS.md §2.2): half
-//! the last step's pressure and half a hydrostatic estimate rho_i |g|
-//! depth_i, the depth under the top of the fluid particle's connected
-//! column.
+//! the last step's pressure and half a hydrostatic estimate, the weight
+//! per unit area of the connected column above the point: |g| times the
+//! integral of rho over the column (rho |g| depth where one density fills
+//! it). The column holds the fluid and the solids in it, each cell with
+//! the mean density of its particles, so a heavy phase over a light one
+//! weighs on the light one, and a body resting on the floor presses on
+//! the floor with its own weight and the fluid's above it.
 //!
 //! Why: relaxed Jacobi moves the smooth, long-wavelength pressure modes by
 //! very little a sweep (a deep pool's hydrostatic gradient is the
@@ -52,22 +56,25 @@ fn up_axis(gravity: [f32; 3]) -> Option<(usize, f32)> {
     }
 }
 
-/// p_i <- 0.5 p_i + 0.5 rho_i |g| depth_i for the points i of `p`, at
-/// `at(i)` with rest densities `rho(i)` (kg/m^3), or p_i <- 0.5 p_i
-/// without `columns`. The points are given by index, so that a caller's
-/// subset (the active walls) needs no copy of its positions.
-pub fn warm_start(
-    columns: Option<&Columns>,
-    at: impl Fn(usize) -> Vec3 + Sync,
-    rho: impl Fn(usize) -> f32 + Sync,
-    p: &mut [f32],
-) {
+/// p_i <- 0.5 p_i + 0.5 p^col_i for the points i of `p`, at `at(i)`, with
+/// p^col the column's weight above the point ([`Columns::pressure`]), or
+/// p_i <- 0.5 p_i without `columns`. The points are given by index, so
+/// that a caller's subset (the active walls) needs no copy of its
+/// positions.
+pub fn warm_start(columns: Option<&Columns>, at: impl Fn(usize) -> Vec3 + Sync, p: &mut [f32]) {
     match columns {
         Some(c) => p.par_iter_mut().enumerate().for_each(|(i, p)| {
-            *p = 0.5 * *p + 0.5 * rho(i) * c.g * c.depth(at(i));
+            *p = 0.5 * *p + 0.5 * c.pressure(at(i));
         }),
         None => p.par_iter_mut().for_each(|p| *p *= 0.5),
     }
+}
+
+/// Points that weigh on the columns: positions and densities (kg/m^3).
+#[derive(Clone, Copy)]
+pub struct Matter<'a> {
+    pub x: Vel<'a>,
+    pub rho: &'a [f32],
 }
 
 /// A dense grid over the fluid's box, each column a run of cells along
@@ -123,39 +130,46 @@ impl Grid {
     }
 
     /// The cell of the point at `x` in the grid widened by one cell on
-    /// each side across (dims `[na + 2, nb + 2, nu]`), if it lies there.
+    /// each side across and by one layer of cells below (dims `[na + 2, nb
+    /// + 2, nu + 1]`), if it lies there.
     #[inline]
     fn cell_widened(&self, x: Vec3) -> Option<usize> {
         let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
-        let widen = [1usize, 1, 0];
         let mut idx = [0usize; 3];
         for k in 0..3 {
-            let f = (q[k] - self.origin[k]) / self.cell + widen[k] as f32;
-            let n = self.dims[k] + 2 * widen[k];
+            let f = (q[k] - self.origin[k]) / self.cell + 1.0;
+            let n = self.dims[k] + if k < 2 { 2 } else { 1 };
             if !(f >= 0.0 && f < n as f32) {
                 return None;
             }
             idx[k] = (f as usize).min(n - 1);
         }
-        Some((idx[0] * (self.dims[1] + 2) + idx[1]) * self.dims[2] + idx[2])
+        Some((idx[0] * (self.dims[1] + 2) + idx[1]) * (self.dims[2] + 1) + idx[2])
     }
 
     /// For every cell, the factor f <= 1 by which the pressure of the
     /// fluid at rest in this geometry falls below its column's rho g
     /// depth: the coarse potential problem of a fluid released at rest
     /// (P-Eq. 24 with u = 0), lap p = 0 in the fluid's cells, p = 0 in air
-    /// (an empty cell above its column's highest fluid cell that holds
-    /// none of `obstacles`, in the grid or in the ring of cells around it
-    /// across) and above the grid, dp/dn = rho g . n at walls, solids and the grid's
-    /// other sides (7-point stencil on the cells, conjugate gradients from
+    /// and above the grid, dp/dn = rho g . n at walls, solids and the
+    /// grid's other sides. Air is a cell that holds none of `obstacles`, in
+    /// the grid, in the ring of cells around it across or in the layer of
+    /// cells under it, and no fluid, above its column's highest fluid cell
+    /// or with no fluid below it in its column (a gap under the fluid: a
+    /// fluid held up by a perforated plate or a body meets air at the
+    /// holes, as a drop in the air does); an empty cell with fluid above
+    /// and below is a hole in the bulk and counts as fluid (7-point
+    /// stencil on the cells, conjugate gradients from
     /// the column's hydrostatic pressure, in units of rho |g| cell); f =
     /// p / p_column where the column is open above, 1 elsewhere. In a pool
     /// at rest p = p_column and f = 1; at a dam's face f -> 0.
     fn static_factor<'a>(&self, occupied: &[bool], obstacles: &[Vel], arena: &'a Bump) -> &'a [f32] {
         let [na, nb, nu] = self.dims;
-        let (wa, wb) = (na + 2, nb + 2);
-        let widened = |a: usize, b: usize, u: usize| (a * wb + b) * nu + u;
-        let solid = arena.alloc_slice_fill_copy(wa * wb * nu, false);
+        // The widened grid: index u = 0 is the layer under the grid, u the
+        // grid's u - 1.
+        let (wa, wb, wu) = (na + 2, nb + 2, nu + 1);
+        let widened = |a: usize, b: usize, u: usize| (a * wb + b) * wu + u;
+        let solid = arena.alloc_slice_fill_copy(wa * wb * wu, false);
         for o in obstacles {
             for i in 0..o.x.len() {
                 if let Some(c) = self.cell_widened(Vec3::new(o.x[i], o.y[i], o.z[i])) {
@@ -163,38 +177,41 @@ impl Grid {
                 }
             }
         }
-        // Cell kinds on the widened grid: fluid (the unknowns; an empty cell
-        // with fluid above it counts, a hole is not a face), air, wall.
+        // Cell kinds on the widened grid: fluid (the unknowns), air, wall.
         const FLUID: u8 = 0;
         const AIR: u8 = 1;
         const WALL: u8 = 2;
-        let kind = arena.alloc_slice_fill_copy(wa * wb * nu, WALL);
+        let kind = arena.alloc_slice_fill_copy(wa * wb * wu, WALL);
         for a in 0..wa {
             for b in 0..wb {
                 let inner = (1..=na).contains(&a) && (1..=nb).contains(&b);
-                let has_fluid = |u: usize| inner && occupied[((a - 1) * nb + (b - 1)) * nu + u];
-                let open_from = (0..nu).rev().find(|&u| has_fluid(u)).map_or(0, |u| u + 1);
-                for u in 0..nu {
+                let has_fluid = |u: usize| inner && u > 0 && occupied[((a - 1) * nb + (b - 1)) * nu + u - 1];
+                let open_from = (0..wu).rev().find(|&u| has_fluid(u)).map_or(0, |u| u + 1);
+                let mut fluid_below = false;
+                for u in 0..wu {
                     let c = widened(a, b, u);
-                    kind[c] = if solid[c] && !has_fluid(u) {
+                    let fluid = has_fluid(u);
+                    kind[c] = if solid[c] && !fluid {
                         WALL
-                    } else if u >= open_from {
-                        AIR
-                    } else if inner {
+                    } else if fluid || (u < open_from && fluid_below) {
                         FLUID
                     } else {
-                        WALL
+                        AIR
+                    };
+                    fluid_below = match kind[c] {
+                        WALL => false,
+                        _ => fluid_below || fluid,
                     };
                 }
             }
         }
         // Column pressure (cells from the first non-fluid cell above, if
         // it is air or the sky), the start and the reference.
-        let column = arena.alloc_slice_fill_copy(wa * wb * nu, f32::NAN);
+        let column = arena.alloc_slice_fill_copy(wa * wb * wu, f32::NAN);
         for a in 0..wa {
             for b in 0..wb {
                 let mut above: Option<f32> = Some(0.0); // the sky
-                for u in (0..nu).rev() {
+                for u in (0..wu).rev() {
                     let c = widened(a, b, u);
                     match kind[c] {
                         FLUID => {
@@ -208,28 +225,29 @@ impl Grid {
             }
         }
         let unknowns = arena.alloc_slice_fill_copy(kind.iter().filter(|&&k| k == FLUID).count(), 0usize);
-        for (slot, c) in unknowns.iter_mut().zip((0..wa * wb * nu).filter(|&c| kind[c] == FLUID)) {
+        for (slot, c) in unknowns.iter_mut().zip((0..wa * wb * wu).filter(|&c| kind[c] == FLUID)) {
             *slot = c;
         }
         let unknowns = &*unknowns;
         // A p for p on the widened grid (0 outside the fluid), and b.
         let neighbours = |c: usize| {
-            let ab = c / nu;
+            let ab = c / wu;
             let (a, b) = (ab / wb, ab % wb);
             [
-                (a > 0).then(|| c - wb * nu),
-                (a + 1 < wa).then(|| c + wb * nu),
-                (b > 0).then(|| c - nu),
-                (b + 1 < wb).then(|| c + nu),
+                (a > 0).then(|| c - wb * wu),
+                (a + 1 < wa).then(|| c + wb * wu),
+                (b > 0).then(|| c - wu),
+                (b + 1 < wb).then(|| c + wu),
             ]
         };
         let apply = |p: &[f32], out: &mut [f32]| {
             for &c in unknowns.iter() {
-                let u = c % nu;
+                let u = c % wu;
                 let mut diag = 0.0f32;
                 let mut off = 0.0f32;
                 let lateral = neighbours(c);
-                let vertical = [(u > 0).then(|| c - 1), (u + 1 < nu).then(|| c + 1)];
+                // Unknowns are never in the layer under the grid (u = 0).
+                let vertical = [Some(c - 1), (u + 1 < wu).then(|| c + 1)];
                 for m in lateral.into_iter().chain(vertical).flatten() {
                     match kind[m] {
                         FLUID => {
@@ -242,27 +260,27 @@ impl Grid {
                     }
                 }
                 // Above the grid: the sky.
-                if u + 1 == nu {
+                if u + 1 == wu {
                     diag += 2.0;
                 }
                 out[c] = diag * p[c] - off;
             }
         };
-        let rhs = arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32);
+        let rhs = arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32);
         for &c in unknowns.iter() {
-            let u = c % nu;
-            let below_wall = u == 0 || !matches!(kind[c - 1], FLUID | AIR);
-            let above_wall = u + 1 < nu && kind[c + 1] == WALL;
+            let u = c % wu;
+            let below_wall = kind[c - 1] == WALL;
+            let above_wall = u + 1 < wu && kind[c + 1] == WALL;
             rhs[c] = below_wall as u32 as f32 - above_wall as u32 as f32;
         }
-        let p = arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32);
+        let p = arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32);
         for &c in unknowns.iter() {
             p[c] = if column[c].is_nan() { 0.0 } else { column[c] };
         }
         let (r, q, dir) = (
-            arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32),
-            arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32),
-            arena.alloc_slice_fill_copy(wa * wb * nu, 0.0f32),
+            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
+            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
+            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
         );
         apply(p, q);
         let dot = |x: &[f32], y: &[f32]| unknowns.iter().map(|&c| f64::from(x[c]) * f64::from(y[c])).sum::<f64>();
@@ -295,7 +313,7 @@ impl Grid {
         }
         arena.alloc_slice_fill_iter((0..na * nb * nu).map(|i| {
             let (ab, u) = (i / nu, i % nu);
-            let c = widened(ab / nb + 1, ab % nb + 1, u);
+            let c = widened(ab / nb + 1, ab % nb + 1, u + 1);
             if kind[c] == FLUID && column[c] > 0.0 {
                 (p[c] / column[c]).clamp(0.0, 1.0)
             } else {
@@ -304,63 +322,136 @@ impl Grid {
         }))
     }
 
-    /// For every cell, the "up" coordinate of the highest point of `x` in
-    /// the gap-free run of occupied cells it belongs to (-inf if empty).
-    fn run_tops<'a>(&self, x: Vel, arena: &'a Bump) -> &'a [f32] {
-        let top = arena.alloc_slice_fill_copy(self.dims.iter().product(), f32::NEG_INFINITY);
-        for i in 0..x.x.len() {
-            let (c, up) = self.cell(Vec3::new(x.x[i], x.y[i], x.z[i]));
-            top[c] = top[c].max(up);
+    /// The cell of the point at `x` and its "up" coordinate, if it lies in
+    /// the grid (a body beside or above the fluid's box weighs on no
+    /// column).
+    #[inline]
+    fn cell_inside(&self, x: Vec3) -> Option<(usize, f32)> {
+        let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
+        let mut idx = [0usize; 3];
+        for k in 0..3 {
+            let f = (q[k] - self.origin[k]) / self.cell;
+            if !(f >= 0.0 && f < self.dims[k] as f32) {
+                return None;
+            }
+            idx[k] = (f as usize).min(self.dims[k] - 1);
         }
-        top.par_chunks_mut(self.dims[2]).for_each(|col| {
-            for u in (0..col.len().saturating_sub(1)).rev() {
-                if col[u] != f32::NEG_INFINITY && col[u + 1] != f32::NEG_INFINITY {
-                    col[u] = col[u + 1];
+        Some(((idx[0] * self.dims[1] + idx[1]) * self.dims[2] + idx[2], q[2]))
+    }
+
+    /// The columns' runs and weights. A run is a gap-free run of cells
+    /// along "up" that hold points of `fluid` (all of them, clamped into the
+    /// grid) or of `solids` (those inside the grid). Per cell: `top`, the
+    /// "up" coordinate of the run's highest point (-inf if empty); `rho`,
+    /// the mean density of its points; `ceil`, where its matter ends above
+    /// (the run's top plus half a spacing in the run's highest cell, the
+    /// cell's upper face below it); `above`, the run's mass per unit area
+    /// above `ceil` (kg/m^2).
+    fn runs<'a>(&self, fluid: Matter, solids: &[Matter], d: f32, arena: &'a Bump) -> Runs<'a> {
+        let cells = self.dims.iter().product();
+        let top = arena.alloc_slice_fill_copy(cells, f32::NEG_INFINITY);
+        let rho = arena.alloc_slice_fill_copy(cells, 0.0f32);
+        let count = arena.alloc_slice_fill_copy(cells, 0u32);
+        let mut add = |(c, up): (usize, f32), r: f32| {
+            top[c] = top[c].max(up);
+            rho[c] += r;
+            count[c] += 1;
+        };
+        let x = fluid.x;
+        for i in 0..x.x.len() {
+            add(self.cell(Vec3::new(x.x[i], x.y[i], x.z[i])), fluid.rho[i]);
+        }
+        for s in solids {
+            let x = s.x;
+            for i in 0..x.x.len() {
+                if let Some(at) = self.cell_inside(Vec3::new(x.x[i], x.y[i], x.z[i])) {
+                    add(at, s.rho[i]);
                 }
             }
-        });
-        top
+        }
+        let ceil = arena.alloc_slice_fill_copy(cells, 0.0f32);
+        let above = arena.alloc_slice_fill_copy(cells, 0.0f32);
+        let nu = self.dims[2];
+        let (origin, cell) = (self.origin[2], self.cell);
+        let columns = top.par_chunks_mut(nu).zip(rho.par_chunks_mut(nu)).zip(count.par_chunks(nu));
+        columns.zip(ceil.par_chunks_mut(nu)).zip(above.par_chunks_mut(nu)).for_each(
+            |((((top, rho), count), ceil), above)| {
+                let mut mass = 0.0f32;
+                for u in (0..nu).rev() {
+                    if count[u] == 0 {
+                        continue;
+                    }
+                    rho[u] /= count[u] as f32;
+                    let highest = u + 1 == nu || count[u + 1] == 0;
+                    if highest {
+                        mass = 0.0;
+                        ceil[u] = top[u] + 0.5 * d;
+                    } else {
+                        top[u] = top[u + 1];
+                        ceil[u] = origin + (u + 1) as f32 * cell;
+                    }
+                    above[u] = mass;
+                    mass += rho[u] * (ceil[u] - (origin + u as f32 * cell)).max(0.0);
+                }
+            },
+        );
+        Runs { top, rho, ceil, above }
     }
 }
 
-/// The fluid's columns along gravity: a [`Grid`] over the fluid's box and,
-/// for every cell, the "up" coordinate of the highest particle of the
-/// gap-free run of occupied cells it belongs to.
+/// What [`Grid::runs`] finds per cell.
+struct Runs<'a> {
+    top: &'a [f32],
+    rho: &'a [f32],
+    ceil: &'a [f32],
+    above: &'a [f32],
+}
+
+/// The columns along gravity: a [`Grid`] over the fluid's box and, for
+/// every cell, its run of matter ([`Grid::runs`]).
 pub struct Columns<'a> {
     grid: Grid,
     /// |g|, m/s^2.
     g: f32,
     /// Particle spacing, m.
     d: f32,
-    top: &'a [f32],
+    runs: Runs<'a>,
     /// Per cell, the factor of the fluid at rest (`Grid::static_factor`);
     /// empty without obstacles given.
     factor: &'a [f32],
 }
 
 impl<'a> Columns<'a> {
-    /// The columns of the fluid at positions `x` (particle spacing `d`)
-    /// along `gravity`, or `None` where gravity is not along one axis or
-    /// the fluid's box is too large a grid (then the warm start is the
-    /// plain half).
-    pub fn new(x: Vel, gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
+    /// The columns of the `fluid` (particle spacing `d`) and of the
+    /// `solids` in its box along `gravity`, or `None` where gravity is not
+    /// along one axis or the fluid's box is too large a grid (then the
+    /// warm start is the plain half).
+    pub fn new(fluid: Matter, solids: &[Matter], gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
         let (axis, sign) = up_axis(gravity)?;
-        let grid = Grid::new(x, axis, sign, 2.0 * d)?;
-        let top = grid.run_tops(x, arena);
-        Some(Columns { grid, g: gravity[axis].abs(), d, top, factor: &[] })
+        let grid = Grid::new(fluid.x, axis, sign, 2.0 * d)?;
+        let runs = grid.runs(fluid, solids, d, arena);
+        Some(Columns { grid, g: gravity[axis].abs(), d, runs, factor: &[] })
     }
 
     /// [`Columns::new`] that also sees lateral free faces: the column's
-    /// depth times the factor by which the pressure of the fluid at rest
-    /// in this geometry falls below it ([`Grid::static_factor`]; air is an
-    /// empty cell, in the grid or one cell beyond the fluid's box across,
-    /// open to the sky and holding none of the `obstacles`, walls and
-    /// solids). A dam's face then starts near p = 0 and a released column
-    /// near its free fall, as the flow will have them, instead of at rho
-    /// g depth; in a pool at rest the factor is 1 and the estimate is
-    /// `new`'s.
-    pub fn with_faces(x: Vel, obstacles: &[Vel], gravity: [f32; 3], d: f32, arena: &'a Bump) -> Option<Columns<'a>> {
+    /// weight times the factor by which the pressure of the fluid at rest
+    /// in this geometry falls below its column's ([`Grid::static_factor`];
+    /// air is an empty cell, in the grid or one cell beyond the fluid's box
+    /// across, open to the sky and holding none of the `obstacles`, walls
+    /// and solids). A dam's face then starts near p = 0 and a released
+    /// column near its free fall, as the flow will have them, instead of
+    /// at rho g depth; in a pool at rest the factor is 1 and the estimate
+    /// is `new`'s.
+    pub fn with_faces(
+        fluid: Matter,
+        solids: &[Matter],
+        obstacles: &[Vel],
+        gravity: [f32; 3],
+        d: f32,
+        arena: &'a Bump,
+    ) -> Option<Columns<'a>> {
         let (axis, sign) = up_axis(gravity)?;
+        let x = fluid.x;
         let grid = Grid::new(x, axis, sign, 2.0 * d)?;
         let occupied = arena.alloc_slice_fill_copy(grid.dims.iter().product(), false);
         for i in 0..x.x.len() {
@@ -368,8 +459,8 @@ impl<'a> Columns<'a> {
             occupied[c] = true;
         }
         let factor = grid.static_factor(occupied, obstacles, arena);
-        let top = grid.run_tops(x, arena);
-        Some(Columns { grid, g: gravity[axis].abs(), d, top, factor })
+        let runs = grid.runs(fluid, solids, d, arena);
+        Some(Columns { grid, g: gravity[axis].abs(), d, runs, factor })
     }
 
     /// The depth of the point at `x` under the top of its column's run
@@ -379,8 +470,23 @@ impl<'a> Columns<'a> {
     #[inline]
     pub fn depth(&self, x: Vec3) -> f32 {
         let (c, up) = self.grid.cell(x);
-        let depth = (self.top[c] - up + 0.5 * self.d).max(0.0);
+        let depth = (self.runs.top[c] - up + 0.5 * self.d).max(0.0);
         depth * self.factor.get(c).copied().unwrap_or(1.0)
+    }
+
+    /// The estimate at the point at `x`, Pa: |g| (above + rho (ceil - up))
+    /// of its cell (the column's mass per unit area above the point), 0 in
+    /// an empty cell or above the top; with [`Columns::with_faces`], times
+    /// its cell's factor.
+    #[inline]
+    pub fn pressure(&self, x: Vec3) -> f32 {
+        let (c, up) = self.grid.cell(x);
+        let r = &self.runs;
+        if r.top[c] == f32::NEG_INFINITY {
+            return 0.0;
+        }
+        let weight = r.above[c] + r.rho[c] * (r.ceil[c] - up).max(0.0);
+        self.g * weight * self.factor.get(c).copied().unwrap_or(1.0)
     }
 }
 
@@ -425,9 +531,10 @@ mod tests {
         let mut p = vec![0.0; n];
         let arena = Bump::new();
         let x = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let c = Columns::new(x, [0.0, -g, 0.0], d, &arena);
+        let rho = vec![1000.0; n];
+        let c = Columns::new(Matter { x, rho: &rho }, &[], [0.0, -g, 0.0], d, &arena);
         assert!(c.is_some());
-        warm_start(c.as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
+        warm_start(c.as_ref(), |i| at(x, i), &mut p);
         for (i, (&p, &y)) in p.iter().zip(x.y).enumerate() {
             let want = 0.5 * 1000.0 * g * (0.3 - y);
             assert!((p - want).abs() <= 1e-4 * 1000.0 * g * 0.3, "particle {i}: {p} against {want}");
@@ -451,7 +558,9 @@ mod tests {
         let mut p = vec![100.0; n];
         let arena = Bump::new();
         let x = Vel { x: &xs, y: &ys, z: &zs };
-        warm_start(Columns::new(x, [0.0, 0.0, -g], d, &arena).as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
+        let rho = vec![1000.0; n];
+        let c = Columns::new(Matter { x, rho: &rho }, &[], [0.0, 0.0, -g], d, &arena);
+        warm_start(c.as_ref(), |i| at(x, i), &mut p);
         for (i, (&p, &z)) in p.iter().zip(&zs).enumerate() {
             let top = if z < 0.06 { 0.06 } else { 0.15 };
             let want = 50.0 + 0.5 * 1000.0 * g * (top - z);
@@ -486,7 +595,8 @@ mod tests {
     fn faces<'a>(x: &'a [Vec<f32>; 3], w: &'a [Vec<f32>; 3], arena: &'a Bump) -> Columns<'a> {
         let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
         let walls = [Vel { x: &w[0], y: &w[1], z: &w[2] }];
-        Columns::with_faces(xv, &walls, [0.0, -9.81, 0.0], 0.01, arena).expect("a grid")
+        let rho = arena.alloc_slice_fill_copy(x[0].len(), 1000.0f32);
+        Columns::with_faces(Matter { x: xv, rho }, &[], &walls, [0.0, -9.81, 0.0], 0.01, arena).expect("a grid")
     }
 
     /// A dam: a column 0.15 m wide and 0.3 m high at d = 1 cm, 4 layers in
@@ -537,7 +647,8 @@ mod tests {
         let arena = Bump::new();
         let with = faces(&x, &w, &arena);
         let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
-        let plain = Columns::new(xv, [0.0, -9.81, 0.0], 0.01, &arena).expect("a grid");
+        let rho = vec![1000.0; x[0].len()];
+        let plain = Columns::new(Matter { x: xv, rho: &rho }, &[], [0.0, -9.81, 0.0], 0.01, &arena).expect("a grid");
         for i in 0..x[0].len() {
             let at = at(xv, i);
             assert_eq!(with.depth(at).to_bits(), plain.depth(at).to_bits(), "particle {i} at {at}");
@@ -569,6 +680,76 @@ mod tests {
         assert_eq!(beside, 24);
     }
 
+    /// Two fluids stacked, 1500 kg/m^3 (15 layers) over 1000 kg/m^3 (15
+    /// layers), d = 1 cm, gravity -y. Reference: hydrostatics, p(y) = g
+    /// times the mass per unit area above y: 1500 g (0.3 - y) in the heavy
+    /// fluid, 1500 g 0.15 + 1000 g (0.15 - y) in the light one. The column's
+    /// depth with each particle's own density gave the light fluid's top
+    /// 1000 g 0.15 instead of 1500 g 0.15 (Rayleigh-Taylor with the
+    /// hydrostatic warm start blew up at step 74, bench/RESULTS.md). Bound:
+    /// (1500 - 1000) g d, the resolution of cells of 2 d: a cell that
+    /// holds both fluids spreads their mean density over its height, which
+    /// moves the interface by up to half a cell (measured: 24.5 Pa, that is
+    /// 500 g d / 2, where the cells' faces lie half a spacing off the
+    /// layers').
+    #[test]
+    fn a_heavy_fluid_over_a_light_one_weighs_on_it() {
+        let (d, g) = (0.01f32, 9.81f32);
+        let x = lattice([10, 30, 4], d, 0.0);
+        let rho: Vec<f32> = x[1].iter().map(|&y| if y > 0.15 { 1500.0 } else { 1000.0 }).collect();
+        let arena = Bump::new();
+        let xv = Vel { x: &x[0], y: &x[1], z: &x[2] };
+        let c = Columns::new(Matter { x: xv, rho: &rho }, &[], [0.0, -g, 0.0], d, &arena).expect("a grid");
+        for (i, &y) in x[1].iter().enumerate() {
+            let want = if y > 0.15 { 1500.0 * g * (0.3 - y) } else { 1500.0 * g * 0.15 + 1000.0 * g * (0.15 - y) };
+            let got = c.pressure(at(xv, i));
+            assert!((got - want).abs() <= 500.0 * g * d, "particle {i} at y {y}: {got} against {want} Pa");
+        }
+    }
+
+    /// A body on the floor of a pool carries its weight and the fluid's
+    /// above it down to the floor. A 1500 kg/m^3 solid block, 4 cells
+    /// across and 6 layers high (0-0.06 m) in the middle of a 12-layer pool
+    /// of water (0-0.12 m), d = 1 cm: reference, hydrostatics, the floor
+    /// under the block at 1000 g 0.06 + 1500 g 0.06 (the fluid above it and
+    /// the block), the floor beside it at 1000 g 0.12, the fluid above the
+    /// block at 1000 g (0.12 - y). A point of the body outside the fluid's
+    /// box weighs on nothing. Bound: (1500 - 1000) g d, the cells'
+    /// resolution of the block's top (the test above; measured 24.5 Pa
+    /// under the block).
+    #[test]
+    fn a_body_on_the_floor_presses_it_with_its_weight_and_the_fluid_above() {
+        let (d, g) = (0.01f32, 9.81f32);
+        let all = lattice([16, 12, 4], d, 0.0);
+        let in_block = |x: f32, y: f32| (0.04..0.12).contains(&x) && y < 0.06;
+        let (fluid, solid): (Vec<usize>, Vec<usize>) =
+            (0..all[0].len()).partition(|&i| !in_block(all[0][i], all[1][i]));
+        let pick = |ids: &[usize]| [0, 1, 2].map(|k| ids.iter().map(|&i| all[k][i]).collect::<Vec<f32>>());
+        let (xf, mut xs) = (pick(&fluid), pick(&solid));
+        // One stray body point far above the fluid's box.
+        xs[0].push(0.05);
+        xs[1].push(0.5);
+        xs[2].push(0.015);
+        let (rf, rs) = (vec![1000.0f32; xf[0].len()], vec![1500.0f32; xs[0].len()]);
+        let arena = Bump::new();
+        let (vf, vs) = (Vel { x: &xf[0], y: &xf[1], z: &xf[2] }, Vel { x: &xs[0], y: &xs[1], z: &xs[2] });
+        let solids = [Matter { x: vs, rho: &rs }];
+        let c = Columns::new(Matter { x: vf, rho: &rf }, &solids, [0.0, -g, 0.0], d, &arena).expect("a grid");
+        let tol = 500.0 * g * d;
+        let under = c.pressure(Vec3::new(0.08, -0.005, 0.015));
+        let want = 1000.0 * g * 0.06 + 1500.0 * g * 0.06 + 1500.0 * g * 0.005;
+        assert!((under - want).abs() <= tol, "floor under the block: {under} against {want} Pa");
+        let beside = c.pressure(Vec3::new(0.015, -0.005, 0.015));
+        let want = 1000.0 * g * 0.125;
+        assert!((beside - want).abs() <= tol, "floor beside the block: {beside} against {want} Pa");
+        for (i, (&x, &y)) in xf[0].iter().zip(&xf[1]).enumerate() {
+            if (0.04..0.12).contains(&x) {
+                let (got, want) = (c.pressure(at(vf, i)), 1000.0 * g * (0.12 - y));
+                assert!((got - want).abs() <= tol, "fluid at x {x} y {y} above the block: {got} against {want} Pa");
+            }
+        }
+    }
+
     /// No gravity, or gravity not along an axis: the plain half warm start.
     #[test]
     fn without_an_axis_of_gravity_it_only_halves() {
@@ -578,9 +759,10 @@ mod tests {
         for gravity in [[0.0, 0.0, 0.0], [1.0, -9.0, 0.0]] {
             let mut p = vec![10.0; n];
             let x = Vel { x: &xs[0], y: &xs[1], z: &xs[2] };
-            let c = Columns::new(x, gravity, 0.01, &arena);
+            let rho = vec![1000.0; n];
+            let c = Columns::new(Matter { x, rho: &rho }, &[], gravity, 0.01, &arena);
             assert!(c.is_none());
-            warm_start(c.as_ref(), |i| at(x, i), |_| 1000.0, &mut p);
+            warm_start(c.as_ref(), |i| at(x, i), &mut p);
             assert!(p.iter().all(|&v| v == 5.0));
         }
     }

@@ -21,7 +21,7 @@ use crate::backend::passes::{
 use crate::store::{FluidStore, SolidStore, WallStore};
 use glam::Vec3;
 use porosph_kernels::blocks::{nblocks, sum_f64, BLOCK};
-use porosph_kernels::hydrostatic::{self, Columns};
+use porosph_kernels::hydrostatic::{self, Columns, Matter};
 use porosph_kernels::iisph::{self, FluidRows, Rows, WallRows};
 use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
 use porosph_kernels::solid_rows::{self, SolidNeighbours, SolidNeighboursMut, SolidRows};
@@ -181,14 +181,22 @@ pub(super) fn setup<'a>(
         }
         // Warm start from half the last pressure (PHYSICS.md §2.2) or, with
         // `pressure_warm_start = "hydrostatic"`, that and half the
-        // hydrostatic estimate (`hydrostatic` says why).
+        // hydrostatic estimate, the weight of the fluid and the solids in
+        // the column above (`hydrostatic` says why).
         let x = Vel { x: &fluid.x, y: &fluid.y, z: &fluid.z };
-        let obstacles =
-            [Vel { x: &walls.x, y: &walls.y, z: &walls.z }, Vel { x: &solids.x, y: &solids.y, z: &solids.z }];
-        let columns =
-            if p.hydrostatic_warm_start { Columns::with_faces(x, &obstacles, p.gravity, p.h, arena) } else { None };
+        let xs = Vel { x: &solids.x, y: &solids.y, z: &solids.z };
+        let obstacles = [Vel { x: &walls.x, y: &walls.y, z: &walls.z }, xs];
+        let columns = if p.hydrostatic_warm_start {
+            // A solid particle's density: its mass over its lattice cell.
+            let volume = p.h * p.h * p.h;
+            let rho_s = arena.alloc_slice_fill_iter(solids.mass.iter().map(|&m| m / volume));
+            let fluid_matter = Matter { x, rho: ph.rest_density };
+            Columns::with_faces(fluid_matter, &[Matter { x: xs, rho: rho_s }], &obstacles, p.gravity, p.h, arena)
+        } else {
+            None
+        };
         let at = |i: usize| Vec3::new(x.x[i], x.y[i], x.z[i]);
-        hydrostatic::warm_start(columns.as_ref(), at, |i| ph.rest_density[i], &mut fluid.pressure);
+        hydrostatic::warm_start(columns.as_ref(), at, &mut fluid.pressure);
         match &columns {
             None => {
                 for (k, &b) in w.active.iter().enumerate() {
@@ -199,14 +207,17 @@ pub(super) fn setup<'a>(
                 for (k, &b) in w.active.iter().enumerate() {
                     p_b[k] = walls.pressure[b as usize];
                 }
-                // The walls with the densest phase's rest density (a wall
-                // row mirrors the fluid beside it).
-                let rho = p.phase_density.iter().copied().fold(0.0, f32::max);
                 let at = |k: usize| {
                     let b = w.active[k] as usize;
                     Vec3::new(walls.x[b], walls.y[b], walls.z[b])
                 };
-                hydrostatic::warm_start(Some(c), at, |_| rho, p_b);
+                hydrostatic::warm_start(Some(c), at, p_b);
+                // The solids' rows (already half their last pressure): a
+                // body's rows carry the column's weight at their height.
+                p_s.par_iter_mut().zip(w.solid_perm.par_iter()).for_each(|(p, &i)| {
+                    let i = i as usize;
+                    *p += 0.5 * c.pressure(Vec3::new(solids.x[i], solids.y[i], solids.z[i]));
+                });
             }
         }
         walls.pressure.iter_mut().for_each(|x| *x = 0.0);

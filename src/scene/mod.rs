@@ -369,8 +369,9 @@ pub enum PhasePressure {
 pub enum PressureWarmStart {
     /// `"half"` (default): half the last step's pressure.
     Half,
-    /// `"hydrostatic"`: half the last step's pressure and half rho |g|
-    /// depth (the plain half without gravity along one axis).
+    /// `"hydrostatic"`: half the last step's pressure and half the weight
+    /// per unit area of the fluid and solids in the column above (rho |g|
+    /// depth in one fluid; the plain half without gravity along one axis).
     Hydrostatic,
 }
 
