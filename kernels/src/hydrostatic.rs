@@ -36,6 +36,7 @@
 //! 4 mm starts at 0.039 m/s after the first step (lattice wall rows; 0.34
 //! with the column's depth alone).
 
+use crate::blocks::{nblocks, sum_f64, BLOCK};
 use crate::soa::Vel;
 use bumpalo::Bump;
 use glam::Vec3;
@@ -224,70 +225,84 @@ impl Grid {
                 }
             }
         }
-        let unknowns = arena.alloc_slice_fill_copy(kind.iter().filter(|&&k| k == FLUID).count(), 0usize);
-        for (slot, c) in unknowns.iter_mut().zip((0..wa * wb * wu).filter(|&c| kind[c] == FLUID)) {
-            *slot = c;
+        // The unknowns in a compact order (the widened grid's), each with its
+        // diagonal and its fluid neighbours (lateral, then below and above;
+        // u32::MAX where none), so that the conjugate gradients below run
+        // over contiguous arrays in parallel.
+        let cells = wa * wb * wu;
+        let unknowns = arena.alloc_slice_fill_copy(kind.iter().filter(|&&k| k == FLUID).count(), 0u32);
+        let slot = arena.alloc_slice_fill_copy(cells, u32::MAX);
+        for (k, c) in (0..cells).filter(|&c| kind[c] == FLUID).enumerate() {
+            unknowns[k] = c as u32;
+            slot[c] = k as u32;
         }
-        let unknowns = &*unknowns;
-        // A p for p on the widened grid (0 outside the fluid), and b.
-        let neighbours = |c: usize| {
+        let (unknowns, slot) = (&*unknowns, &*slot);
+        let m = unknowns.len();
+        let diag = arena.alloc_slice_fill_copy(m, 0.0f32);
+        let links = arena.alloc_slice_fill_copy(m, [u32::MAX; 6]);
+        let (rhs, p) = (arena.alloc_slice_fill_copy(m, 0.0f32), arena.alloc_slice_fill_copy(m, 0.0f32));
+        let stencil = diag.par_iter_mut().zip(links.par_iter_mut()).zip(rhs.par_iter_mut().zip(p.par_iter_mut()));
+        stencil.zip(unknowns.par_iter()).for_each(|(((dg, ln), (b, p)), &c)| {
+            let c = c as usize;
+            let u = c % wu;
             let ab = c / wu;
-            let (a, b) = (ab / wb, ab % wb);
-            [
+            let (a, bb) = (ab / wb, ab % wb);
+            let lateral = [
                 (a > 0).then(|| c - wb * wu),
                 (a + 1 < wa).then(|| c + wb * wu),
-                (b > 0).then(|| c - wu),
-                (b + 1 < wb).then(|| c + wu),
-            ]
-        };
-        let apply = |p: &[f32], out: &mut [f32]| {
-            for &c in unknowns.iter() {
-                let u = c % wu;
-                let mut diag = 0.0f32;
-                let mut off = 0.0f32;
-                let lateral = neighbours(c);
-                // Unknowns are never in the layer under the grid (u = 0).
-                let vertical = [Some(c - 1), (u + 1 < wu).then(|| c + 1)];
-                for m in lateral.into_iter().chain(vertical).flatten() {
-                    match kind[m] {
-                        FLUID => {
-                            diag += 1.0;
-                            off += p[m];
-                        }
-                        // p = 0 on the face between the cells.
-                        AIR => diag += 2.0,
-                        _ => {}
+                (bb > 0).then(|| c - wu),
+                (bb + 1 < wb).then(|| c + wu),
+            ];
+            // Unknowns are never in the layer under the grid (u = 0).
+            let vertical = [Some(c - 1), (u + 1 < wu).then(|| c + 1)];
+            let mut k = 0;
+            for n in lateral.into_iter().chain(vertical).flatten() {
+                match kind[n] {
+                    FLUID => {
+                        *dg += 1.0;
+                        ln[k] = slot[n];
+                        k += 1;
                     }
+                    // p = 0 on the face between the cells.
+                    AIR => *dg += 2.0,
+                    _ => {}
                 }
-                // Above the grid: the sky.
-                if u + 1 == wu {
-                    diag += 2.0;
-                }
-                out[c] = diag * p[c] - off;
             }
-        };
-        let rhs = arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32);
-        for &c in unknowns.iter() {
-            let u = c % wu;
+            // Above the grid: the sky.
+            if u + 1 == wu {
+                *dg += 2.0;
+            }
             let below_wall = kind[c - 1] == WALL;
             let above_wall = u + 1 < wu && kind[c + 1] == WALL;
-            rhs[c] = below_wall as u32 as f32 - above_wall as u32 as f32;
-        }
-        let p = arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32);
-        for &c in unknowns.iter() {
-            p[c] = if column[c].is_nan() { 0.0 } else { column[c] };
-        }
+            *b = below_wall as u32 as f32 - above_wall as u32 as f32;
+            *p = if column[c].is_nan() { 0.0 } else { column[c] };
+        });
+        let (diag, links, rhs) = (&*diag, &*links, &*rhs);
+        // A p for p over the unknowns (0 outside the fluid).
+        let apply = |p: &[f32], out: &mut [f32]| {
+            out.par_chunks_mut(BLOCK).enumerate().for_each(|(blk, o)| {
+                for (q, o) in o.iter_mut().enumerate() {
+                    let i = blk * BLOCK + q;
+                    let mut off = 0.0f32;
+                    for &n in links[i].iter().take_while(|&&n| n != u32::MAX) {
+                        off += p[n as usize];
+                    }
+                    *o = diag[i] * p[i] - off;
+                }
+            });
+        };
+        let parts = arena.alloc_slice_fill_copy(nblocks(m), 0.0f64);
+        let mut dot = |x: &[f32], y: &[f32]| sum_f64(m, parts, |i| f64::from(x[i]) * f64::from(y[i]));
         let (r, q, dir) = (
-            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
-            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
-            arena.alloc_slice_fill_copy(wa * wb * wu, 0.0f32),
+            arena.alloc_slice_fill_copy(m, 0.0f32),
+            arena.alloc_slice_fill_copy(m, 0.0f32),
+            arena.alloc_slice_fill_copy(m, 0.0f32),
         );
         apply(p, q);
-        let dot = |x: &[f32], y: &[f32]| unknowns.iter().map(|&c| f64::from(x[c]) * f64::from(y[c])).sum::<f64>();
-        for &c in unknowns.iter() {
-            r[c] = rhs[c] - q[c];
-            dir[c] = r[c];
-        }
+        r.par_iter_mut().zip(dir.par_iter_mut()).enumerate().for_each(|(i, (r, d))| {
+            *r = rhs[i] - q[i];
+            *d = *r;
+        });
         let mut rr = dot(r, r);
         // A warm start's accuracy: the residual to 1e-3 of the source, and
         // at most the grid's extent in iterations (CG's reach on a
@@ -300,22 +315,21 @@ impl Grid {
             }
             apply(dir, q);
             let alpha = (rr / dot(dir, q)) as f32;
-            for &c in unknowns.iter() {
-                p[c] += alpha * dir[c];
-                r[c] -= alpha * q[c];
-            }
+            p.par_iter_mut().zip(r.par_iter_mut()).enumerate().for_each(|(i, (p, r))| {
+                *p += alpha * dir[i];
+                *r -= alpha * q[i];
+            });
             let rr_next = dot(r, r);
             let beta = (rr_next / rr) as f32;
-            for &c in unknowns.iter() {
-                dir[c] = r[c] + beta * dir[c];
-            }
+            dir.par_iter_mut().zip(r.par_iter()).for_each(|(d, &r)| *d = r + beta * *d);
             rr = rr_next;
         }
+        let p = &*p;
         arena.alloc_slice_fill_iter((0..na * nb * nu).map(|i| {
             let (ab, u) = (i / nu, i % nu);
             let c = widened(ab / nb + 1, ab % nb + 1, u + 1);
             if kind[c] == FLUID && column[c] > 0.0 {
-                (p[c] / column[c]).clamp(0.0, 1.0)
+                (p[slot[c] as usize] / column[c]).clamp(0.0, 1.0)
             } else {
                 1.0
             }
