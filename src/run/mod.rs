@@ -168,6 +168,8 @@ pub fn stats_columns(phases: &[Phase], solids: &[Solid]) -> Vec<String> {
         "cg_iterations",
         "cg_residual",
         "granular_substeps",
+        "viscosity_iterations",
+        "largest_density_error",
         "fluid_particles",
     ]
     .iter()
@@ -390,6 +392,8 @@ pub fn run(sim: &mut Simulation, opts: &RunOptions) -> Result<RunSummary, RunErr
             st.cg_iterations as f64,
             st.cg_residual as f64,
             st.granular_substeps as f64,
+            st.viscosity_iterations as f64,
+            st.largest_density_error as f64,
             n,
         ];
         let (outer, inner) = sim.phase_volumes_split();
