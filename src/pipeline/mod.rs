@@ -87,9 +87,14 @@ pub struct Params {
     pub solid_granular: Vec<bool>,
     /// Lamé parameters of each solid body (`[[solid]]` order), Pa.
     pub solid_lame: Vec<Lame>,
-    /// Viscosity solved implicitly (`simulation.viscosity_solver`), and
-    /// the relative residual of its conjugate gradients.
+    /// Viscosity solved implicitly (`simulation.viscosity_solver`): dt is
+    /// not held to the explicit bound, and a step longer than
+    /// `implicit_viscosity_above` solves it implicitly (0 with
+    /// "implicit": every step; the explicit bound with "auto": a step the
+    /// explicit form can take keeps it). Then the relative residual of its
+    /// conjugate gradients.
     pub implicit_viscosity: bool,
+    pub implicit_viscosity_above: f32,
     pub viscosity_tolerance: f32,
     /// Relative residual of the elastic conjugate gradients.
     pub elastic_tolerance: f32,

@@ -68,7 +68,7 @@ pub(super) fn predict<'a>(
             gravity: p.gravity,
             dt,
         };
-        if p.implicit_viscosity && n > 0 {
+        if p.implicit_viscosity && dt > p.implicit_viscosity_above && n > 0 {
             let alpha = mixture.then_some(alpha);
             let z3 = || [zeros(arena, n), zeros(arena, n), zeros(arena, n)];
             let scratch = ImplicitScratch {

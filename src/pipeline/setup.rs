@@ -23,6 +23,14 @@ impl Params {
     pub fn from_scene(scene: &Scene) -> Self {
         let s = &scene.simulation;
         let h = s.particle_spacing;
+        // The explicit viscosity's stable step: the least over the viscous
+        // phases (infinite without one).
+        let explicit_bound = scene
+            .phases
+            .iter()
+            .filter(|p| p.viscosity > 0.0)
+            .map(|p| explicit_viscosity_bound(h, p.density, p.viscosity))
+            .fold(f32::INFINITY, f32::min);
         Self {
             h,
             kernel: Kernel::with_shape(
@@ -59,10 +67,11 @@ impl Params {
             implicit_viscosity: match s.viscosity_solver {
                 ViscositySolver::Explicit => false,
                 ViscositySolver::Implicit => true,
-                ViscositySolver::Auto => scene
-                    .phases
-                    .iter()
-                    .any(|p| p.viscosity > 0.0 && explicit_viscosity_bound(h, p.density, p.viscosity) < s.max_dt),
+                ViscositySolver::Auto => explicit_bound < s.max_dt,
+            },
+            implicit_viscosity_above: match s.viscosity_solver {
+                ViscositySolver::Auto => explicit_bound,
+                _ => 0.0,
             },
             viscosity_tolerance: s.viscosity_tolerance,
             elastic_tolerance: s.elastic_tolerance,

@@ -392,9 +392,12 @@ pub enum WallRowsChoice {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum ViscositySolver {
-    /// `"auto"`: implicit where the explicit bound 0.125 d^2 rho_k / mu_k
-    /// of some phase is below `max_dt`, else explicit (the same result as
-    /// explicit where the bound never holds dt).
+    /// `"auto"`: dt is not held to the explicit bound 0.125 d^2 rho_k /
+    /// mu_k where that is below `max_dt`, and each step longer than the
+    /// bound solves the viscosity implicitly, each step within it
+    /// explicitly (a step held below it by another term, such as the CFL
+    /// rule in a fast flow, skips the solve; the same result as explicit
+    /// where the bound never holds dt).
     Auto,
     /// `"explicit"` (default): a^visc from the velocities at the step's
     /// start; dt is held to 0.125 d^2 rho_k / mu_k.
