@@ -130,22 +130,31 @@ impl Grid {
         ((idx(0) * self.dims[1] + idx(1)) * self.dims[2] + idx(2), q[2])
     }
 
+    /// The cell of the point at `x` in the grid widened by `low` cells
+    /// below each axis's first and `high` above its last (dims `dims + low
+    /// + high`), if it lies there, and its "up" coordinate.
+    #[inline]
+    fn cell_in(&self, x: Vec3, low: [usize; 3], high: [usize; 3]) -> Option<(usize, f32)> {
+        let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
+        let mut idx = [0usize; 3];
+        let mut n = [0usize; 3];
+        for k in 0..3 {
+            let f = (q[k] - self.origin[k]) / self.cell + low[k] as f32;
+            n[k] = self.dims[k] + low[k] + high[k];
+            if !(f >= 0.0 && f < n[k] as f32) {
+                return None;
+            }
+            idx[k] = (f as usize).min(n[k] - 1);
+        }
+        Some(((idx[0] * n[1] + idx[1]) * n[2] + idx[2], q[2]))
+    }
+
     /// The cell of the point at `x` in the grid widened by one cell on
     /// each side across and by one layer of cells below (dims `[na + 2, nb
     /// + 2, nu + 1]`), if it lies there.
     #[inline]
     fn cell_widened(&self, x: Vec3) -> Option<usize> {
-        let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
-        let mut idx = [0usize; 3];
-        for k in 0..3 {
-            let f = (q[k] - self.origin[k]) / self.cell + 1.0;
-            let n = self.dims[k] + if k < 2 { 2 } else { 1 };
-            if !(f >= 0.0 && f < n as f32) {
-                return None;
-            }
-            idx[k] = (f as usize).min(n - 1);
-        }
-        Some((idx[0] * (self.dims[1] + 2) + idx[1]) * (self.dims[2] + 1) + idx[2])
+        self.cell_in(x, [1, 1, 1], [1, 1, 0]).map(|(c, _)| c)
     }
 
     /// For every cell, the factor f <= 1 by which the pressure of the
@@ -336,23 +345,6 @@ impl Grid {
         }))
     }
 
-    /// The cell of the point at `x` and its "up" coordinate, if it lies in
-    /// the grid (a body beside or above the fluid's box weighs on no
-    /// column).
-    #[inline]
-    fn cell_inside(&self, x: Vec3) -> Option<(usize, f32)> {
-        let q = [x[self.across[0]], x[self.across[1]], self.sign * x[self.axis]];
-        let mut idx = [0usize; 3];
-        for k in 0..3 {
-            let f = (q[k] - self.origin[k]) / self.cell;
-            if !(f >= 0.0 && f < self.dims[k] as f32) {
-                return None;
-            }
-            idx[k] = (f as usize).min(self.dims[k] - 1);
-        }
-        Some(((idx[0] * self.dims[1] + idx[1]) * self.dims[2] + idx[2], q[2]))
-    }
-
     /// The columns' runs and weights. A run is a gap-free run of cells
     /// along "up" that hold points of `fluid` (all of them, clamped into the
     /// grid) or of `solids` (those inside the grid). Per cell: `top`, the
@@ -378,7 +370,7 @@ impl Grid {
         for s in solids {
             let x = s.x;
             for i in 0..x.x.len() {
-                if let Some(at) = self.cell_inside(Vec3::new(x.x[i], x.y[i], x.z[i])) {
+                if let Some(at) = self.cell_in(Vec3::new(x.x[i], x.y[i], x.z[i]), [0; 3], [0; 3]) {
                     add(at, s.rho[i]);
                 }
             }
@@ -427,8 +419,6 @@ pub struct Columns<'a> {
     grid: Grid,
     /// |g|, m/s^2.
     g: f32,
-    /// Particle spacing, m.
-    d: f32,
     runs: Runs<'a>,
     /// Per cell, the factor of the fluid at rest (`Grid::static_factor`);
     /// empty without obstacles given.
@@ -444,7 +434,7 @@ impl<'a> Columns<'a> {
         let (axis, sign) = up_axis(gravity)?;
         let grid = Grid::new(fluid.x, axis, sign, 2.0 * d)?;
         let runs = grid.runs(fluid, solids, d, arena);
-        Some(Columns { grid, g: gravity[axis].abs(), d, runs, factor: &[] })
+        Some(Columns { grid, g: gravity[axis].abs(), runs, factor: &[] })
     }
 
     /// [`Columns::new`] that also sees lateral free faces: the column's
@@ -474,18 +464,7 @@ impl<'a> Columns<'a> {
         }
         let factor = grid.static_factor(occupied, obstacles, arena);
         let runs = grid.runs(fluid, solids, d, arena);
-        Some(Columns { grid, g: gravity[axis].abs(), d, runs, factor })
-    }
-
-    /// The depth of the point at `x` under the top of its column's run
-    /// plus half a spacing (the free surface above the top particle), m; 0
-    /// in an empty cell or above the top; with [`Columns::with_faces`],
-    /// times its cell's factor.
-    #[inline]
-    pub fn depth(&self, x: Vec3) -> f32 {
-        let (c, up) = self.grid.cell(x);
-        let depth = (self.runs.top[c] - up + 0.5 * self.d).max(0.0);
-        depth * self.factor.get(c).copied().unwrap_or(1.0)
+        Some(Columns { grid, g: gravity[axis].abs(), runs, factor })
     }
 
     /// The estimate at the point at `x`, Pa: |g| (above + rho (ceil - up))
@@ -604,6 +583,12 @@ mod tests {
         (x, w)
     }
 
+    /// The estimate at `x` in metres of water (the tests' fluids are 1000
+    /// kg/m^3 under g = 9.81 m/s^2): the column's depth where it is full.
+    fn head(c: &Columns, x: Vec3) -> f32 {
+        c.pressure(x) / (1000.0 * 9.81)
+    }
+
     /// [`Columns::with_faces`] of the particles `x` among the walls `w`
     /// (d = 1 cm, gravity -y).
     fn faces<'a>(x: &'a [Vec<f32>; 3], w: &'a [Vec<f32>; 3], arena: &'a Bump) -> Columns<'a> {
@@ -645,7 +630,8 @@ mod tests {
         let mut worst = 0.0f64;
         for xi in [0.005f32, 0.045, 0.075, 0.105, 0.145] {
             for yi in [0.005f32, 0.055, 0.105, 0.155, 0.205, 0.255, 0.295] {
-                let (est, want) = (f64::from(c.depth(Vec3::new(xi, yi, 0.015))), exact(f64::from(xi), f64::from(yi)));
+                let est = f64::from(head(&c, Vec3::new(xi, yi, 0.015)));
+                let want = exact(f64::from(xi), f64::from(yi));
                 println!("x {xi} y {yi}: estimate {est:.4} m, exact {want:.4} m");
                 worst = worst.max((est - want).abs());
             }
@@ -665,14 +651,14 @@ mod tests {
         let plain = Columns::new(Matter { x: xv, rho: &rho }, &[], [0.0, -9.81, 0.0], 0.01, &arena).expect("a grid");
         for i in 0..x[0].len() {
             let at = at(xv, i);
-            assert_eq!(with.depth(at).to_bits(), plain.depth(at).to_bits(), "particle {i} at {at}");
+            assert_eq!(with.pressure(at).to_bits(), plain.pressure(at).to_bits(), "particle {i} at {at}");
         }
     }
 
     /// A hole in the bulk is not a free face: the closed tank of the test
     /// above with the particles of one cell (x and y in [0.04, 0.06) m,
     /// every z) taken out keeps the column's depth beside it (an empty
-    /// cell with fluid above is fluid).
+    /// cell with fluid above and below is fluid).
     #[test]
     fn a_hole_in_the_bulk_does_not_lower_the_estimate_beside_it() {
         let (full, w) = boxed([12, 20, 6], 0.01, false);
@@ -688,7 +674,7 @@ mod tests {
             if (0.02..0.04).contains(&at.x) && (0.04..0.06).contains(&at.y) {
                 beside += 1;
                 let depth = 0.2 - at.y;
-                assert!((with.depth(at) - depth).abs() < 1e-5, "particle {i} at {at}: {} m", with.depth(at));
+                assert!((head(&with, at) - depth).abs() < 1e-5, "particle {i} at {at}: {} m", head(&with, at));
             }
         }
         assert_eq!(beside, 24);

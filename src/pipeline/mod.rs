@@ -95,6 +95,9 @@ pub struct Params {
     /// conjugate gradients.
     pub implicit_viscosity: bool,
     pub implicit_viscosity_above: f32,
+    /// The explicit viscosity's stable step, the least 0.125 h^2 rho_k /
+    /// mu_k over the viscous phases (infinite without one), s.
+    pub explicit_viscosity_dt: f32,
     pub viscosity_tolerance: f32,
     /// Relative residual of the elastic conjugate gradients.
     pub elastic_tolerance: f32,

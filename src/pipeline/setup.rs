@@ -73,6 +73,7 @@ impl Params {
                 ViscositySolver::Auto => explicit_bound,
                 _ => 0.0,
             },
+            explicit_viscosity_dt: explicit_bound,
             viscosity_tolerance: s.viscosity_tolerance,
             elastic_tolerance: s.elastic_tolerance,
             elastic_prediction_tolerance: s.elastic_prediction_tolerance,

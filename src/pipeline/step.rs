@@ -130,11 +130,7 @@ impl Simulation {
             bound(p.cfl * p.h / max_speed, DtLimit::Cfl);
         }
         if !p.implicit_viscosity {
-            for (&rho, &mu) in p.phase_density.iter().zip(&p.phase_viscosity) {
-                if mu > 0.0 {
-                    bound(explicit_viscosity_bound(p.h, rho, mu), DtLimit::Viscosity);
-                }
-            }
+            bound(p.explicit_viscosity_dt, DtLimit::Viscosity);
         }
         if p.mixture() {
             if max_drift > 0.0 {
