@@ -51,12 +51,18 @@
 //! Three gathers, each writing its own arrays (so the GPU twin,
 //! `shaders/drift.wgsl`, can use the same function names):
 //! 1. [`phase_velocity`], once per phase: v_k and w_k ([`phase_velocities`]
-//!    for all phases in one pass over the pairs, what the CPU runs).
+//!    for all phases in one pass over the pairs).
 //! 2. [`mixture_velocity`]: s = sum_k c_k v_k and the volume-weighted mean
 //!    phase velocity m = sum_k alphahat_k v_k.
 //! 3. [`drift_velocity`], once per phase: u_mk = v_k - s (over v_k), and
 //!    the phase flux F_k = w_k - alpha_k m = alpha_k (u_mk - j) for the
 //!    transport (over w_k), j = sum_k alphahat_k u_mk.
+//!
+//! The CPU runs all three, with P-Eq. 11's (12's) porous term between 1
+//! and 2 and the largest drift speed, in one pass: [`drift_velocities`],
+//! bit for bit the sequence (steps 2-3 and the porous term need only the
+//! particle's own values, so they follow each particle's pair loop instead
+//! of reading and writing every phase's arrays again).
 //!
 //! Why the (default, conservative) transport moves F_k = alpha_k (u_mk - j)
 //! rather than alpha_k u_mk [inferred]: u_mk is the phase velocity relative
@@ -232,6 +238,147 @@ pub fn phase_velocities(inp: &PhaseVelocityInput, alpha: &[&[f32]], phases: &[Ph
 /// accumulators a phase stay in registers.
 const GROUP: usize = 4;
 
+/// What [`drift_velocities`] does after the phase velocities, per particle.
+#[derive(Clone, Copy)]
+pub struct DriftSums<'a> {
+    /// Rest density rho_k per phase, kg/m^3.
+    pub density: &'a [f32],
+    /// P-Eq. 11's (12's) porous term, `scale` e_k with e_k per phase on
+    /// the fluid-solid band, as [`crate::porous::add_phase_term`] adds it.
+    pub porous: Option<(BandVel<'a>, f32)>,
+    /// The conservative transport's fluxes F_k = w_k - alpha_k m; else the
+    /// reference form's alpha_k u_mk ([`drift_velocity`]).
+    pub conservative: bool,
+}
+
+/// Steps 1-3 of P-Eq. 11 for every phase in one pass (module doc): per
+/// particle [`phase_velocities`], then [`crate::porous::add_phase_term`]
+/// (with `sums.porous`), [`mixture_velocity`] and [`drift_velocity`] of
+/// each phase, from its own values: `u` gets u_mk, `f` the flux F_k (phase
+/// k at `[k n, (k + 1) n)` of each component). Returns
+/// [`max_drift_speed`] of u. Bit for bit that sequence of passes
+/// (`kernels/tests/mixture.rs`): the same expressions in the same order.
+pub fn drift_velocities(
+    inp: &PhaseVelocityInput,
+    alpha: &[&[f32]],
+    phases: &[PhaseConstants],
+    sums: &DriftSums,
+    u: VelMut,
+    f: VelMut,
+) -> f32 {
+    let (n, np) = (inp.alpha_f.len(), alpha.len());
+    assert_eq!(phases.len(), np, "drift_velocities: {} phases' constants for {np} fractions", phases.len());
+    assert_eq!(sums.density.len(), np, "drift_velocities: {} densities for {np} fractions", sums.density.len());
+    let VelMut { x: vx, y: vy, z: vz } = u;
+    let VelMut { x: wx, y: wy, z: wz } = f;
+    let out = [vx, vy, vz, wx, wy, wz].map(|o| {
+        assert_eq!(o.len(), np * n, "drift_velocities: {} outputs for {np} phases of {n} particles", o.len());
+        PhaseOut(o.as_mut_ptr())
+    });
+    let blocks = &inp.ff.used()[..n.div_ceil(BLOCK)];
+    let packed = inp.packed.filter(|_| np <= PACKED_PHASES);
+    blocks
+        .par_iter()
+        .enumerate()
+        .map(|(b, blk)| {
+            let mut largest = 0.0f32;
+            for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
+                let q = i - b * BLOCK;
+                if inp.alpha_f[i] < MIN_ALPHA_F {
+                    for k in 0..np {
+                        // SAFETY: i belongs to this block alone, k n + i < np n.
+                        out.iter().for_each(|o| unsafe { o.write(k * n + i, 0.0) });
+                    }
+                } else {
+                    for k0 in (0..np).step_by(GROUP) {
+                        let (a, c) = (&alpha[k0..(k0 + GROUP).min(np)], &phases[k0..(k0 + GROUP).min(np)]);
+                        let at = (i, k0, n);
+                        match a.len() {
+                            1 => velocity_group::<1>(inp, blk, q, at, (a, packed), c, &out),
+                            2 => velocity_group::<2>(inp, blk, q, at, (a, packed), c, &out),
+                            3 => velocity_group::<3>(inp, blk, q, at, (a, packed), c, &out),
+                            _ => velocity_group::<GROUP>(inp, blk, q, at, (a, None), c, &out),
+                        }
+                    }
+                }
+                // SAFETY: particle i's indices, this block's alone.
+                let speed = unsafe { finish_particle(i, n, alpha, inp.alpha_f, sums, &out) };
+                // max_drift_speed's rule (blocks::max_f32).
+                if speed.is_nan() || speed > largest {
+                    largest = speed;
+                }
+            }
+            largest
+        })
+        .reduce(|| 0.0f32, |a, b| if a.is_nan() || b.is_nan() { f32::NAN } else { a.max(b) })
+}
+
+/// The per-particle rest of [`drift_velocities`] for particle i, over its
+/// phase velocities v_k (`out[0..3]`) and w_k (`out[3..6]`) at `k n + i`:
+/// the porous term, s and m, u_mk and F_k in place; returns max_k |u_mk|
+/// as [`max_drift_speed`] takes it.
+///
+/// # Safety
+/// No other thread reads or writes particle i's indices meanwhile.
+#[inline(always)]
+unsafe fn finish_particle(
+    i: usize,
+    n: usize,
+    alpha: &[&[f32]],
+    alpha_f: &[f32],
+    sums: &DriftSums,
+    out: &[PhaseOut; 6],
+) -> f32 {
+    let np = alpha.len();
+    let af = alpha_f[i];
+    // SAFETY (every read and write below): particle i's index of phase k,
+    // the caller's.
+    let get = |c: usize, k: usize| unsafe { out[c].read(k * n + i) };
+    let set = |c: usize, k: usize, v: f32| unsafe { out[c].write(k * n + i, v) };
+    // crate::porous::add_phase_term.
+    if let (Some((e, scale)), true) = (sums.porous, af >= MIN_ALPHA_F) {
+        for (k, alpha_k) in alpha.iter().enumerate() {
+            let t = e.get(k, i).map(|e| scale * e);
+            let a = alpha_k[i];
+            for (c, t) in t.into_iter().enumerate() {
+                set(c, k, get(c, k) + t);
+                set(3 + c, k, get(3 + c, k) + a * t);
+            }
+        }
+    }
+    // mixture_velocity.
+    let mass: f32 = (0..np).map(|k| alpha[k][i] * sums.density[k]).sum();
+    let (s, m) = if af < MIN_ALPHA_F || mass <= 0.0 {
+        ([0.0f32; 3], [0.0f32; 3])
+    } else {
+        let (mut ms, mut mv) = ([0.0f32; 3], [0.0f32; 3]);
+        for (k, rho) in sums.density.iter().enumerate() {
+            for c in 0..3 {
+                let wk = get(3 + c, k);
+                ms[c] += rho * wk;
+                mv[c] += wk;
+            }
+        }
+        (ms.map(|x| x / mass), mv.map(|x| x / af))
+    };
+    // drift_velocity, and max_drift_speed's per-particle speed.
+    let mut speed = 0.0f32;
+    for (k, alpha_k) in alpha.iter().enumerate() {
+        let a = alpha_k[i];
+        let uk: [f32; 3] = std::array::from_fn(|c| get(c, k) - s[c]);
+        for c in 0..3 {
+            set(c, k, uk[c]);
+            let fk = if sums.conservative { get(3 + c, k) - a * m[c] } else { a * uk[c] };
+            set(3 + c, k, fk);
+        }
+        let sk = (uk[0] * uk[0] + uk[1] * uk[1] + uk[2] * uk[2]).sqrt();
+        if sk.is_nan() || sk > speed {
+            speed = sk;
+        }
+    }
+    speed
+}
+
 /// Where the blocks of [`phase_velocities`] write: each particle's values
 /// at indices no other particle writes.
 #[derive(Clone, Copy)]
@@ -247,6 +394,12 @@ impl PhaseOut {
     /// call, and no other thread reads or writes index `i` meanwhile.
     unsafe fn write(&self, i: usize, v: f32) {
         unsafe { *self.0.add(i) = v }
+    }
+
+    /// # Safety
+    /// As [`PhaseOut::write`].
+    unsafe fn read(&self, i: usize) -> f32 {
+        unsafe { *self.0.add(i) }
     }
 }
 

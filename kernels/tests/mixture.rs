@@ -4,6 +4,7 @@
 //! unity and positivity; drift velocities have no mass-weighted mean; the
 //! phase pair weights of the viscosity are exactly 1 for one phase.
 
+use porosph_kernels::band::{Band, BandVel};
 use porosph_kernels::blocks::BLOCK;
 use porosph_kernels::drift::{self, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
@@ -13,6 +14,7 @@ use porosph_kernels::lanes::{pair_vectors, sum, Packed, F};
 use porosph_kernels::neighbors::{build_pairs, compute_keys, sort_permutation, PairLists};
 use porosph_kernels::phase_transport::{correct, correction_sums, transport, TransportScratch};
 use porosph_kernels::phases::{join, PhaseConstants, PhaseVel};
+use porosph_kernels::porous;
 use porosph_kernels::soa::{Vel, VelMut};
 use porosph_kernels::viscosity::{predict_velocity, predict_velocity_mixture, ViscosityInput};
 use wide::Select;
@@ -626,6 +628,132 @@ fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
             }
         }
     }
+}
+
+/// "The drift's one pass is the sequence of passes bit for bit":
+/// `drift::drift_velocities` (the phase velocities, P-Eq. 11's porous term,
+/// the mixture sums, the drift velocities and fluxes and the largest drift
+/// speed, per particle after its pair loop) against `phase_velocities`,
+/// `porous::add_phase_term` per phase, `mixture_velocity`, `drift_velocity`
+/// per phase and `max_drift_speed`, for 1 to 6 phases, with and without the
+/// porous term (on a band of every third particle), the conservative and
+/// the reference fluxes, the shared and the per-fraction pressure, packed
+/// fractions where they apply, and alpha_f below the 0.01 guard on some
+/// particles.
+#[test]
+fn the_fused_drift_is_the_sequence_of_passes_bit_for_bit() {
+    let mut rng = Lcg(13);
+    let lat = lattice(9, &mut rng);
+    let n = lat.x.len();
+    let arena = bumpalo::Bump::new();
+    let field = |r: &mut Lcg, s: f32, len: usize| -> Vec<f32> { (0..len).map(|_| s * (r.next() - 0.5)).collect() };
+    let (avx, avy, avz) = (field(&mut rng, 2.0, n), field(&mut rng, 2.0, n), field(&mut rng, 2.0, n));
+    let (apx, apy, apz) = (field(&mut rng, 20.0, n), field(&mut rng, 20.0, n), field(&mut rng, 20.0, n));
+    let p: Vec<f32> = (0..n).map(|_| 1000.0 * rng.next()).collect();
+    let band = Band::new(&arena, n, |i| i % 3 == 0);
+    let mut checked = 0;
+    for np in 1..=6 {
+        let alpha_f: Vec<f32> = (0..n).map(|_| if rng.next() < 0.1 { 0.005 } else { 0.5 + 0.5 * rng.next() }).collect();
+        let alpha: Vec<Vec<f32>> = fractions(n, np, &mut rng)
+            .into_iter()
+            .map(|a| a.iter().zip(&alpha_f).map(|(a, f)| a * f).collect())
+            .collect();
+        let a: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
+        let phases: Vec<PhaseConstants> = (0..np)
+            .map(|k| PhaseConstants { density: 800.0 + 150.0 * k as f32, tau: 1e-5 * (1.0 + k as f32), sigma: 1e-3 })
+            .collect();
+        let density: Vec<f32> = phases.iter().map(|c| c.density).collect();
+        let m = band.len() * np;
+        let (ex, ey, ez) = (field(&mut rng, 1e5, m), field(&mut rng, 1e5, m), field(&mut rng, 1e5, m));
+        let e = BandVel { band, x: &ex, y: &ey, z: &ez };
+        let mut pf = vec![0.0; n];
+        drift::pressure_per_fraction(&p, &alpha_f, &mut pf);
+        let mut store = vec![[0.0f32; 4]; n];
+        for (fraction_pressure, porous, conservative) in
+            (0..8).map(|c| (c & 1 != 0, (c & 2 != 0).then_some((e, -3e-6f32)), c & 4 != 0))
+        {
+            let pk = drift::pack_fractions(&a, fraction_pressure.then_some(pf.as_slice()), &mut store);
+            let inp = PhaseVelocityInput {
+                ff: &lat.ff,
+                alpha_f: &alpha_f,
+                p_per_fraction: if fraction_pressure { Some(&pf) } else { None },
+                a_visc: Vel { x: &avx, y: &avy, z: &avz },
+                a_p: Vel { x: &apx, y: &apy, z: &apz },
+                packed: pk,
+            };
+            // The sequence of passes.
+            let mut seq: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; np * n]);
+            let largest_seq = {
+                let [vx, vy, vz, wx, wy, wz] = &mut seq;
+                drift::phase_velocities(
+                    &inp,
+                    &a,
+                    &phases,
+                    VelMut { x: vx, y: vy, z: vz },
+                    VelMut { x: wx, y: wy, z: wz },
+                );
+                if let Some((e, scale)) = porous {
+                    for k in 0..np {
+                        let r = k * n..(k + 1) * n;
+                        let v = VelMut { x: &mut vx[r.clone()], y: &mut vy[r.clone()], z: &mut vz[r.clone()] };
+                        let w = VelMut { x: &mut wx[r.clone()], y: &mut wy[r.clone()], z: &mut wz[r.clone()] };
+                        porous::add_phase_term(&alpha[k], &alpha_f, e, k, scale, v, w);
+                    }
+                }
+                let (mut s3, mut m3): ([Vec<f32>; 3], [Vec<f32>; 3]) =
+                    (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
+                {
+                    let (cx, cy, cz) = (phase_slices(wx, n), phase_slices(wy, n), phase_slices(wz, n));
+                    let [sx, sy, sz] = &mut s3;
+                    let [mx, my, mz] = &mut m3;
+                    drift::mixture_velocity(
+                        &a,
+                        &alpha_f,
+                        &density,
+                        PhaseVel { x: &cx, y: &cy, z: &cz },
+                        VelMut { x: sx, y: sy, z: sz },
+                        VelMut { x: mx, y: my, z: mz },
+                    );
+                }
+                let sv = Vel { x: &s3[0], y: &s3[1], z: &s3[2] };
+                let mv = Vel { x: &m3[0], y: &m3[1], z: &m3[2] };
+                for k in 0..np {
+                    let r = k * n..(k + 1) * n;
+                    let v = VelMut { x: &mut vx[r.clone()], y: &mut vy[r.clone()], z: &mut vz[r.clone()] };
+                    let w = VelMut { x: &mut wx[r.clone()], y: &mut wy[r.clone()], z: &mut wz[r.clone()] };
+                    drift::drift_velocity(&alpha[k], sv, conservative.then_some(mv), v, w);
+                }
+                let (ux, uy, uz) = (phase_slices(vx, n), phase_slices(vy, n), phase_slices(vz, n));
+                drift::max_drift_speed(PhaseVel { x: &ux, y: &uy, z: &uz }, n)
+            };
+            // The one pass.
+            let mut one: [Vec<f32>; 6] = std::array::from_fn(|_| vec![f32::NAN; np * n]);
+            let sums = drift::DriftSums { density: &density, porous, conservative };
+            let largest_one = {
+                let [vx, vy, vz, wx, wy, wz] = &mut one;
+                let (u, f) = (VelMut { x: vx, y: vy, z: vz }, VelMut { x: wx, y: wy, z: wz });
+                drift::drift_velocities(&inp, &a, &phases, &sums, u, f)
+            };
+            let case = format!(
+                "{np} phases, fraction pressure {fraction_pressure}, porous {}, conservative {conservative}",
+                porous.is_some()
+            );
+            assert_eq!(largest_one.to_bits(), largest_seq.to_bits(), "{case}: largest drift speed");
+            assert!(largest_one > 0.0, "{case}: no drift");
+            for (c, (o, e)) in one.iter().zip(&seq).enumerate() {
+                for (j, (o, e)) in o.iter().zip(e).enumerate() {
+                    assert_eq!(o.to_bits(), e.to_bits(), "{case}: output {c}, entry {j}: {o} against {e}");
+                }
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 48);
+}
+
+/// Phase k's n values of `v` at `[k n, (k + 1) n)`, as a list.
+fn phase_slices(v: &[f32], n: usize) -> Vec<&[f32]> {
+    v.chunks(n).collect()
 }
 
 /// The pressure rows (pass 4c) read u* and V/m at the fluid pairs' targets

@@ -11,12 +11,12 @@ use super::BackendKind;
 use bumpalo::Bump;
 use porosph_kernels::blocks::{nblocks, sum_f64};
 use porosph_kernels::chebyshev;
-use porosph_kernels::drift::{self, PhaseVelocityInput};
+use porosph_kernels::drift::{self, DriftSums, PhaseVelocityInput};
 use porosph_kernels::grid::CellGrid;
 use porosph_kernels::iisph::{self, Jacobi, SolidPairs};
 use porosph_kernels::neighbors::{compute_keys, sort_permutation_into};
-use porosph_kernels::phases::{PhaseConstants, PhaseVel};
-use porosph_kernels::soa::{zeros, zeros3, Vel, VelMut};
+use porosph_kernels::phases::PhaseConstants;
+use porosph_kernels::soa::{zeros, Vel, VelMut};
 use porosph_kernels::solid_rows;
 use rayon::prelude::*;
 
@@ -53,9 +53,13 @@ impl Passes for Cpu {
         let inp = &prob.input;
         let n = inp.alpha_f.len();
         let density = arena.alloc_slice_fill_iter(inp.phases.iter().map(|c| c.density));
-        let mut sums = MixtureSums::new(arena, n, density, inp.conservative);
-        // P-Eq. 11: the outer drift over the pressure solve's pairs.
-        let DriftOutput { u: VelMut { x: ux, y: uy, z: uz }, f: VelMut { x: fx, y: fy, z: fz } } = out;
+        // P-Eq. 11: the outer drift over the pressure solve's pairs, with
+        // its porous term -phi (grad p^pore_fk - sum c grad p^pore_fk').
+        let sums = DriftSums {
+            density,
+            porous: inp.porous.as_ref().map(|pd| (pd.grad_pore, -pd.pore_drift)),
+            conservative: inp.conservative,
+        };
         // The fractions packed, for the outer drift and then the inner one.
         let packed = arena.alloc_slice_fill_copy(n, [0.0f32; 4]);
         let pv = PhaseVelocityInput {
@@ -66,32 +70,11 @@ impl Passes for Cpu {
             a_p: inp.a_p,
             packed: drift::pack_fractions(inp.alpha, inp.p_per_fraction, &mut *packed),
         };
-        let v = VelMut { x: &mut *ux, y: &mut *uy, z: &mut *uz };
-        let w = VelMut { x: &mut *fx, y: &mut *fy, z: &mut *fz };
-        drift::phase_velocities(&pv, inp.alpha, inp.phases, v, w);
-        // P-Eq. 11's porous term, -phi (grad p^pore_fk - sum c grad p^pore_fk').
-        if let Some(pd) = &inp.porous {
-            let v = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
-            let w = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
-            for (k, (((x, y), z), ((wx, wy), wz))) in v.zip(w).enumerate() {
-                let (v, w) = (VelMut { x, y, z }, VelMut { x: wx, y: wy, z: wz });
-                porosph_kernels::porous::add_phase_term(
-                    inp.alpha[k],
-                    inp.alpha_f,
-                    pd.grad_pore,
-                    k,
-                    -pd.pore_drift,
-                    v,
-                    w,
-                );
-            }
-        }
-        sums.drift_velocities(inp.alpha, inp.alpha_f, [&mut *ux, &mut *uy, &mut *uz], [&mut *fx, &mut *fy, &mut *fz]);
-        let mut max_speed = drift::max_drift_speed(PhaseVel::split(arena, Vel { x: ux, y: uy, z: uz }, n), n);
+        let mut max_speed = drift::drift_velocities(&pv, inp.alpha, inp.phases, &sums, out.u, out.f);
         // P-Eq. 12: the inner drift over the pairs with h^3 grad W (inner
-        // particles have no pressure-solve volume).
+        // particles have no pressure-solve volume), its porous term
+        // -tau' q_k.
         if let (Some(pd), Some(ffb), Some(out)) = (&inp.porous, prob.ffb, inner) {
-            let DriftOutput { u: VelMut { x: bx, y: by, z: bz }, f: VelMut { x: gx, y: gy, z: gz } } = out;
             let pv = PhaseVelocityInput {
                 ff: ffb,
                 alpha_f: pd.beta_f,
@@ -102,18 +85,8 @@ impl Passes for Cpu {
             };
             let inner_phases =
                 arena.alloc_slice_fill_iter(inp.phases.iter().map(|&c| PhaseConstants { sigma: pd.inner_sigma, ..c }));
-            let v = VelMut { x: &mut *bx, y: &mut *by, z: &mut *bz };
-            let w = VelMut { x: &mut *gx, y: &mut *gy, z: &mut *gz };
-            drift::phase_velocities(&pv, pd.beta, inner_phases, v, w);
-            for (k, &beta_k) in pd.beta.iter().enumerate() {
-                let r = k * n..(k + 1) * n;
-                let v = VelMut { x: &mut bx[r.clone()], y: &mut by[r.clone()], z: &mut bz[r.clone()] };
-                let w = VelMut { x: &mut gx[r.clone()], y: &mut gy[r.clone()], z: &mut gz[r.clone()] };
-                porosph_kernels::porous::add_phase_term(beta_k, pd.beta_f, pd.q, k, -pd.inner_tau, v, w);
-            }
-            sums.drift_velocities(pd.beta, pd.beta_f, [&mut *bx, &mut *by, &mut *bz], [&mut *gx, &mut *gy, &mut *gz]);
-            max_speed =
-                max_speed.max(drift::max_drift_speed(PhaseVel::split(arena, Vel { x: bx, y: by, z: bz }, n), n));
+            let sums = DriftSums { porous: Some((pd.q, -pd.inner_tau)), ..sums };
+            max_speed = max_speed.max(drift::drift_velocities(&pv, pd.beta, inner_phases, &sums, out.u, out.f));
         }
         DriftReport { max_speed, gpu_ms: 0.0 }
     }
@@ -237,40 +210,6 @@ fn jacobi_loop(sys: &PressureSystem, x: Unknowns, arena: &Bump) -> SolveReport {
         r.respond(Vel { x: fx, y: fy, z: fz }, accel.reborrow(), true);
     }
     report
-}
-
-/// Steps 2-3 of P-Eq. 11 (or 12) for all phases: the mass- and
-/// volume-weighted mean phase velocities, then the drift velocities over
-/// the phase velocities v and the transport fluxes over w.
-struct MixtureSums<'a> {
-    arena: &'a Bump,
-    n: usize,
-    density: &'a [f32],
-    conservative: bool,
-    /// The mean velocities s and m, overwritten by each call.
-    s: VelMut<'a>,
-    m: VelMut<'a>,
-}
-
-impl<'a> MixtureSums<'a> {
-    fn new(arena: &'a Bump, n: usize, density: &'a [f32], conservative: bool) -> Self {
-        Self { arena, n, density, conservative, s: zeros3(arena, n), m: zeros3(arena, n) }
-    }
-
-    fn drift_velocities(&mut self, frac: &[&[f32]], frac_f: &[f32], v: [&mut [f32]; 3], w: [&mut [f32]; 3]) {
-        let (arena, n) = (self.arena, self.n);
-        let [ux, uy, uz] = v;
-        let [fx, fy, fz] = w;
-        let w = PhaseVel::split(arena, Vel { x: fx, y: fy, z: fz }, n);
-        drift::mixture_velocity(frac, frac_f, self.density, w, self.s.reborrow(), self.m.reborrow());
-        let (s, m) = (self.s.view(), self.m.view());
-        let m = if self.conservative { Some(m) } else { None };
-        let u = ux.chunks_mut(n).zip(uy.chunks_mut(n)).zip(uz.chunks_mut(n));
-        let f = fx.chunks_mut(n).zip(fy.chunks_mut(n)).zip(fz.chunks_mut(n));
-        for (k, (((x, y), z), ((gx, gy), gz))) in u.zip(f).enumerate() {
-            drift::drift_velocity(frac[k], s, m, VelMut { x, y, z }, VelMut { x: gx, y: gy, z: gz });
-        }
-    }
 }
 
 /// The semi-iteration's state in the Jacobi loop (`porosph_kernels::chebyshev`):
