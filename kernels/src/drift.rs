@@ -200,38 +200,7 @@ pub fn phase_velocity(inp: &PhaseVelocityInput, alpha_k: &[f32], phase: PhaseCon
 /// (n = `inp.alpha_f.len()`). Bit for bit [`phase_velocity`] phase by
 /// phase: the same sums in the same order (`kernels/tests/mixture.rs`).
 pub fn phase_velocities(inp: &PhaseVelocityInput, alpha: &[&[f32]], phases: &[PhaseConstants], v: VelMut, w: VelMut) {
-    let (n, np) = (inp.alpha_f.len(), alpha.len());
-    assert_eq!(phases.len(), np, "phase_velocities: {} phases' constants for {np} fractions", phases.len());
-    let VelMut { x: vx, y: vy, z: vz } = v;
-    let VelMut { x: wx, y: wy, z: wz } = w;
-    let out = [vx, vy, vz, wx, wy, wz].map(|o| {
-        assert_eq!(o.len(), np * n, "phase_velocities: {} outputs for {np} phases of {n} particles", o.len());
-        PhaseOut(o.as_mut_ptr())
-    });
-    let blocks = &inp.ff.used()[..n.div_ceil(BLOCK)];
-    let packed = inp.packed.filter(|_| np <= PACKED_PHASES);
-    blocks.par_iter().enumerate().for_each(|(b, blk)| {
-        for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
-            let q = i - b * BLOCK;
-            if inp.alpha_f[i] < MIN_ALPHA_F {
-                for k in 0..np {
-                    // SAFETY: i belongs to this block alone, k n + i < np n.
-                    out.iter().for_each(|o| unsafe { o.write(k * n + i, 0.0) });
-                }
-                continue;
-            }
-            for k0 in (0..np).step_by(GROUP) {
-                let (a, c) = (&alpha[k0..(k0 + GROUP).min(np)], &phases[k0..(k0 + GROUP).min(np)]);
-                let at = (i, k0, n);
-                match a.len() {
-                    1 => velocity_group::<1>(inp, blk, q, at, (a, packed), c, &out),
-                    2 => velocity_group::<2>(inp, blk, q, at, (a, packed), c, &out),
-                    3 => velocity_group::<3>(inp, blk, q, at, (a, packed), c, &out),
-                    _ => velocity_group::<GROUP>(inp, blk, q, at, (a, None), c, &out),
-                }
-            }
-        }
-    });
+    one_pass(inp, alpha, phases, None, v, w);
 }
 
 /// Phases per pair loop of [`phase_velocities`]: with phase pressures six
@@ -266,13 +235,32 @@ pub fn drift_velocities(
     u: VelMut,
     f: VelMut,
 ) -> f32 {
+    assert_eq!(
+        sums.density.len(),
+        alpha.len(),
+        "drift pass: {} densities for {} fractions",
+        sums.density.len(),
+        alpha.len()
+    );
+    one_pass(inp, alpha, phases, Some(sums), u, f)
+}
+
+/// [`phase_velocities`] into `v` and `w`, and with `sums` the rest of
+/// [`drift_velocities`] in place (returning its largest speed; 0 without).
+fn one_pass(
+    inp: &PhaseVelocityInput,
+    alpha: &[&[f32]],
+    phases: &[PhaseConstants],
+    sums: Option<&DriftSums>,
+    v: VelMut,
+    w: VelMut,
+) -> f32 {
     let (n, np) = (inp.alpha_f.len(), alpha.len());
-    assert_eq!(phases.len(), np, "drift_velocities: {} phases' constants for {np} fractions", phases.len());
-    assert_eq!(sums.density.len(), np, "drift_velocities: {} densities for {np} fractions", sums.density.len());
-    let VelMut { x: vx, y: vy, z: vz } = u;
-    let VelMut { x: wx, y: wy, z: wz } = f;
+    assert_eq!(phases.len(), np, "drift pass: {} phases' constants for {np} fractions", phases.len());
+    let VelMut { x: vx, y: vy, z: vz } = v;
+    let VelMut { x: wx, y: wy, z: wz } = w;
     let out = [vx, vy, vz, wx, wy, wz].map(|o| {
-        assert_eq!(o.len(), np * n, "drift_velocities: {} outputs for {np} phases of {n} particles", o.len());
+        assert_eq!(o.len(), np * n, "drift pass: {} outputs for {np} phases of {n} particles", o.len());
         PhaseOut(o.as_mut_ptr())
     });
     let blocks = &inp.ff.used()[..n.div_ceil(BLOCK)];
@@ -301,11 +289,13 @@ pub fn drift_velocities(
                         }
                     }
                 }
-                // SAFETY: particle i's indices, this block's alone.
-                let speed = unsafe { finish_particle(i, n, alpha, inp.alpha_f, sums, &out) };
-                // max_drift_speed's rule (blocks::max_f32).
-                if speed.is_nan() || speed > largest {
-                    largest = speed;
+                if let Some(sums) = sums {
+                    // SAFETY: particle i's indices, this block's alone.
+                    let speed = unsafe { finish_particle(i, n, alpha, inp.alpha_f, sums, &out) };
+                    // max_drift_speed's rule (blocks::max_f32).
+                    if speed.is_nan() || speed > largest {
+                        largest = speed;
+                    }
                 }
             }
             largest

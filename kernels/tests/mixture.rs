@@ -247,24 +247,13 @@ fn drift_has_no_mass_weighted_mean_and_fluxes_add_up_to_zero() {
                 VelMut { x: wx, y: wy, z: wz },
             );
         }
-        let (mut s, mut m): ([Vec<f32>; 3], [Vec<f32>; 3]) =
-            (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
-        {
+        let (s, m) = {
             let wx: Vec<&[f32]> = w.iter().map(|w| w[0].as_slice()).collect();
             let wy: Vec<&[f32]> = w.iter().map(|w| w[1].as_slice()).collect();
             let wz: Vec<&[f32]> = w.iter().map(|w| w[2].as_slice()).collect();
             let aref: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
-            let [sx, sy, sz] = &mut s;
-            let [mx, my, mz] = &mut m;
-            drift::mixture_velocity(
-                &aref,
-                &alpha_f,
-                &density,
-                PhaseVel { x: &wx, y: &wy, z: &wz },
-                VelMut { x: sx, y: sy, z: sz },
-                VelMut { x: mx, y: my, z: mz },
-            );
-        }
+            mixture_means(&aref, &alpha_f, &density, PhaseVel { x: &wx, y: &wy, z: &wz })
+        };
         let sv = Vel { x: &s[0], y: &s[1], z: &s[2] };
         let mv = Vel { x: &m[0], y: &m[1], z: &m[2] };
         for k in 0..np {
@@ -700,21 +689,10 @@ fn the_fused_drift_is_the_sequence_of_passes_bit_for_bit() {
                         porous::add_phase_term(&alpha[k], &alpha_f, e, k, scale, v, w);
                     }
                 }
-                let (mut s3, mut m3): ([Vec<f32>; 3], [Vec<f32>; 3]) =
-                    (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
-                {
+                let (s3, m3) = {
                     let (cx, cy, cz) = (phase_slices(wx, n), phase_slices(wy, n), phase_slices(wz, n));
-                    let [sx, sy, sz] = &mut s3;
-                    let [mx, my, mz] = &mut m3;
-                    drift::mixture_velocity(
-                        &a,
-                        &alpha_f,
-                        &density,
-                        PhaseVel { x: &cx, y: &cy, z: &cz },
-                        VelMut { x: sx, y: sy, z: sz },
-                        VelMut { x: mx, y: my, z: mz },
-                    );
-                }
+                    mixture_means(&a, &alpha_f, &density, PhaseVel { x: &cx, y: &cy, z: &cz })
+                };
                 let sv = Vel { x: &s3[0], y: &s3[1], z: &s3[2] };
                 let mv = Vel { x: &m3[0], y: &m3[1], z: &m3[2] };
                 for k in 0..np {
@@ -749,6 +727,18 @@ fn the_fused_drift_is_the_sequence_of_passes_bit_for_bit() {
         }
     }
     assert_eq!(checked, 48);
+}
+
+/// `drift::mixture_velocity` into new vectors: the mass- and
+/// volume-weighted mean phase velocities s and m.
+fn mixture_means(alpha: &[&[f32]], alpha_f: &[f32], density: &[f32], w: PhaseVel) -> ([Vec<f32>; 3], [Vec<f32>; 3]) {
+    let n = alpha_f.len();
+    let (mut s, mut m): ([Vec<f32>; 3], [Vec<f32>; 3]) =
+        (std::array::from_fn(|_| vec![0.0; n]), std::array::from_fn(|_| vec![0.0; n]));
+    let [sx, sy, sz] = &mut s;
+    let [mx, my, mz] = &mut m;
+    drift::mixture_velocity(alpha, alpha_f, density, w, VelMut { x: sx, y: sy, z: sz }, VelMut { x: mx, y: my, z: mz });
+    (s, m)
 }
 
 /// Phase k's n values of `v` at `[k n, (k + 1) n)`, as a list.
