@@ -186,6 +186,15 @@ fn hydrostatic_column_from(chebyshev_radius: f32, warm: PressureWarmStart) -> u6
 /// Measured 2026-12-06: lattice rows, edges 0.939 and corners 1.042 over
 /// 0.1-0.2 s (no wall within d 0.988, one 1.000); Akinci rows 1.264 and
 /// 2.926 (0.996, 0.960).
+///
+/// The corner group is four particles, and its figure depends on the
+/// window (measured 2026-12-08, lattice rows, the same run): corners
+/// 1.042 / 0.897 / 0.543 over steps 51-100 / 101-150 / 151-200, edges
+/// 0.939 / 0.983 / 1.012. Their pressure swings by a factor of two from
+/// step to step also with the solve at 1e-5 (bench/RESULTS.md, "The deep
+/// pool's late growth"), so this test holds the corners' mean over its
+/// window only; a per-row check of the corners at rest is still to be
+/// written.
 #[test]
 fn lattice_wall_rows_hold_the_container_edges_and_corners_at_rho_g_depth() {
     let run = |rows: WallRowsChoice| {
