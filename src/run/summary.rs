@@ -1,7 +1,9 @@
 //! The end of a run in a few lines a user can read: simulated time and
 //! steps, the time step (mean, least, and which term of the rule held it),
 //! the wall time per simulated second and the particle-steps per second
-//! (fluid and solid), the pressure solve's mean iterations, the process's
+//! (fluid and solid), the pressure solve's mean iterations, how many of
+//! its solves ran to the sweep cap and the largest row compression any
+//! solve left (which a mean-error stop can hide), the process's
 //! peak resident memory (what a cluster job must ask for), and with two or
 //! more phases how much each phase's mass changed.
 
@@ -36,6 +38,17 @@ pub struct RunSummary {
     pub dt_held_before: u64,
     /// Pressure solve iterations, summed over the steps.
     pub iterations: u64,
+    /// The solve's sweep cap (`max_iterations`), and the steps whose solve
+    /// ran to it.
+    pub max_iterations: u32,
+    pub capped: u64,
+    /// The largest predicted row compression a solve left
+    /// (`StepStats::largest_density_error`; 0 where the GPU solved), the
+    /// step that left it, and the solve's bound on the mean
+    /// (`max_density_error`), fractions of rest density.
+    pub largest_row: f32,
+    pub largest_row_step: u64,
+    pub mean_bound: f32,
     /// Per phase: its name and (mass at the end - mass at the start) /
     /// mass at the start (NaN if it had no mass).
     pub mass_change: Vec<(String, f64)>,
@@ -58,6 +71,8 @@ pub(super) struct Tally {
     masses: Vec<f64>,
     /// The term that set the dt of the next step (`None`: set before the run).
     next: Option<DtLimit>,
+    /// The simulation's step number before the run.
+    first_step: u64,
 }
 
 impl Tally {
@@ -69,10 +84,13 @@ impl Tally {
                 dt_min: f64::INFINITY,
                 fluid_particles: sim.fluid.len(),
                 solid_particles: sim.solids.len(),
+                max_iterations: sim.params.max_iterations,
+                mean_bound: sim.params.max_density_error,
                 ..RunSummary::default()
             },
             masses: sim.phase_masses(),
             next: sim.last.next_dt_limit,
+            first_step: sim.step,
         }
     }
 
@@ -83,6 +101,10 @@ impl Tally {
         s.dt_sum += f64::from(st.dt);
         s.dt_min = s.dt_min.min(f64::from(st.dt));
         s.iterations += u64::from(st.iterations);
+        s.capped += u64::from(st.iterations >= s.max_iterations);
+        if st.largest_density_error > s.largest_row {
+            (s.largest_row, s.largest_row_step) = (st.largest_density_error, self.first_step + s.steps);
+        }
         match self.next {
             Some(l) => s.dt_held[l as usize] += 1,
             None => s.dt_held_before += 1,
@@ -171,9 +193,23 @@ impl fmt::Display for RunSummary {
         )?;
         write!(
             f,
-            "\nporosph:   pressure solve: {:.1} iterations per step (mean)",
-            self.iterations as f64 / self.steps as f64
+            "\nporosph:   pressure solve: {:.1} iterations per step (mean), {} at the cap of {}",
+            self.iterations as f64 / self.steps as f64,
+            match self.capped {
+                0 => "no step".to_string(),
+                n => plural(n, "step", "steps"),
+            },
+            self.max_iterations
         )?;
+        if self.largest_row > 0.0 {
+            write!(
+                f,
+                "; largest row compression left {:.2} % (step {}; the mean's bound {:.2} %)",
+                100.0 * self.largest_row,
+                self.largest_row_step,
+                100.0 * self.mean_bound
+            )?;
+        }
         if let Some(b) = self.peak_memory {
             let particles = (self.fluid_particles + self.solid_particles).max(1);
             write!(
