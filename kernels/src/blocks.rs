@@ -50,24 +50,29 @@ pub fn max_f32(n: usize, f: impl Fn(usize) -> f32 + Sync) -> f32 {
         .map(|b| {
             let mut m = 0.0f32;
             for i in b * BLOCK..((b + 1) * BLOCK).min(n) {
-                let v = f(i);
-                if v.is_nan() || v > m {
-                    m = v;
-                }
+                keep_largest(&mut m, f(i));
                 if m.is_nan() {
                     break;
                 }
             }
             m
         })
-        .reduce(
-            || 0.0f32,
-            |a, b| {
-                if a.is_nan() || b.is_nan() {
-                    f32::NAN
-                } else {
-                    a.max(b)
-                }
-            },
-        )
+        .reduce(|| 0.0f32, larger)
+}
+
+/// [`max_f32`]'s step: `m` becomes `v` where `v` is larger or NaN.
+#[inline(always)]
+pub fn keep_largest(m: &mut f32, v: f32) {
+    if v.is_nan() || v > *m {
+        *m = v;
+    }
+}
+
+/// [`max_f32`]'s combination of two maxima: NaN if either is.
+pub fn larger(a: f32, b: f32) -> f32 {
+    if a.is_nan() || b.is_nan() {
+        f32::NAN
+    } else {
+        a.max(b)
+    }
 }

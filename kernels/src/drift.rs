@@ -83,7 +83,7 @@
 //! alpha_k u_mk would be 0.
 
 use crate::band::BandVel;
-use crate::blocks::BLOCK;
+use crate::blocks::{keep_largest, larger, BLOCK};
 use crate::lanes::{pair_vectors, sum, Packed, F};
 use crate::neighbors::{PairBlock, PairLists};
 use crate::phases::{PhaseConstants, PhaseVel, MIN_ALPHA_F, MIN_PHASE_FRACTION};
@@ -291,16 +291,12 @@ fn one_pass(
                 }
                 if let Some(sums) = sums {
                     // SAFETY: particle i's indices, this block's alone.
-                    let speed = unsafe { finish_particle(i, n, alpha, inp.alpha_f, sums, &out) };
-                    // max_drift_speed's rule (blocks::max_f32).
-                    if speed.is_nan() || speed > largest {
-                        largest = speed;
-                    }
+                    keep_largest(&mut largest, unsafe { finish_particle(i, n, alpha, inp.alpha_f, sums, &out) });
                 }
             }
             largest
         })
-        .reduce(|| 0.0f32, |a, b| if a.is_nan() || b.is_nan() { f32::NAN } else { a.max(b) })
+        .reduce(|| 0.0f32, larger)
 }
 
 /// The per-particle rest of [`drift_velocities`] for particle i, over its
@@ -361,10 +357,7 @@ unsafe fn finish_particle(
             let fk = if sums.conservative { get(3 + c, k) - a * m[c] } else { a * uk[c] };
             set(3 + c, k, fk);
         }
-        let sk = (uk[0] * uk[0] + uk[1] * uk[1] + uk[2] * uk[2]).sqrt();
-        if sk.is_nan() || sk > speed {
-            speed = sk;
-        }
+        keep_largest(&mut speed, (uk[0] * uk[0] + uk[1] * uk[1] + uk[2] * uk[2]).sqrt());
     }
     speed
 }
@@ -580,10 +573,7 @@ pub fn max_drift_speed(u: PhaseVel, n: usize) -> f32 {
     crate::blocks::max_f32(n, |i| {
         let mut m = 0.0f32;
         for k in 0..u.phases() {
-            let s = (u.x[k][i] * u.x[k][i] + u.y[k][i] * u.y[k][i] + u.z[k][i] * u.z[k][i]).sqrt();
-            if s.is_nan() || s > m {
-                m = s;
-            }
+            keep_largest(&mut m, (u.x[k][i] * u.x[k][i] + u.y[k][i] * u.y[k][i] + u.z[k][i] * u.z[k][i]).sqrt());
         }
         m
     })
@@ -667,10 +657,7 @@ pub fn max_advective_speed(inp: &AdvectiveDrift) -> f32 {
             }
             let tk = t(k);
             let u = [tk[0] - s[0] / mass, tk[1] - s[1] / mass, tk[2] - s[2] / mass];
-            let speed = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
-            if speed.is_nan() || speed > largest {
-                largest = speed;
-            }
+            keep_largest(&mut largest, (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt());
         }
         largest
     })

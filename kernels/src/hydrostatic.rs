@@ -454,17 +454,15 @@ impl<'a> Columns<'a> {
         d: f32,
         arena: &'a Bump,
     ) -> Option<Columns<'a>> {
-        let (axis, sign) = up_axis(gravity)?;
+        let mut c = Columns::new(fluid, solids, gravity, d, arena)?;
         let x = fluid.x;
-        let grid = Grid::new(x, axis, sign, 2.0 * d)?;
-        let occupied = arena.alloc_slice_fill_copy(grid.dims.iter().product(), false);
+        let occupied = arena.alloc_slice_fill_copy(c.grid.dims.iter().product(), false);
         for i in 0..x.x.len() {
-            let (c, _) = grid.cell(Vec3::new(x.x[i], x.y[i], x.z[i]));
-            occupied[c] = true;
+            let (cell, _) = c.grid.cell(Vec3::new(x.x[i], x.y[i], x.z[i]));
+            occupied[cell] = true;
         }
-        let factor = grid.static_factor(occupied, obstacles, arena);
-        let runs = grid.runs(fluid, solids, d, arena);
-        Some(Columns { grid, g: gravity[axis].abs(), runs, factor })
+        c.factor = c.grid.static_factor(occupied, obstacles, arena);
+        Some(c)
     }
 
     /// The estimate at the point at `x`, Pa: |g| (above + rho (ceil - up))

@@ -553,15 +553,8 @@ fn one_pass_phase_velocities_are_the_per_phase_ones_bit_for_bit() {
     let (apx, apy, apz) = (field(&mut rng, 20.0), field(&mut rng, 20.0), field(&mut rng, 20.0));
     let p: Vec<f32> = (0..n).map(|_| 1000.0 * rng.next()).collect();
     for np in 1..=6 {
-        // Outer fractions summing to alpha_f < 1 (inner fluid), some below the guard.
-        let alpha_f: Vec<f32> = (0..n).map(|_| if rng.next() < 0.1 { 0.005 } else { 0.5 + 0.5 * rng.next() }).collect();
-        let alpha: Vec<Vec<f32>> = fractions(n, np, &mut rng)
-            .into_iter()
-            .map(|a| a.iter().zip(&alpha_f).map(|(a, f)| a * f).collect())
-            .collect();
-        let phases: Vec<PhaseConstants> = (0..np)
-            .map(|k| PhaseConstants { density: 800.0 + 150.0 * k as f32, tau: 1e-5 * (1.0 + k as f32), sigma: 1e-3 })
-            .collect();
+        let (alpha_f, alpha) = outer_fractions(n, np, &mut rng);
+        let phases = drifting_phases(np);
         let mut pf = vec![0.0; n];
         drift::pressure_per_fraction(&p, &alpha_f, &mut pf);
         for fraction_pressure in [false, true] {
@@ -642,15 +635,9 @@ fn the_fused_drift_is_the_sequence_of_passes_bit_for_bit() {
     let band = Band::new(&arena, n, |i| i % 3 == 0);
     let mut checked = 0;
     for np in 1..=6 {
-        let alpha_f: Vec<f32> = (0..n).map(|_| if rng.next() < 0.1 { 0.005 } else { 0.5 + 0.5 * rng.next() }).collect();
-        let alpha: Vec<Vec<f32>> = fractions(n, np, &mut rng)
-            .into_iter()
-            .map(|a| a.iter().zip(&alpha_f).map(|(a, f)| a * f).collect())
-            .collect();
+        let (alpha_f, alpha) = outer_fractions(n, np, &mut rng);
         let a: Vec<&[f32]> = alpha.iter().map(|a| a.as_slice()).collect();
-        let phases: Vec<PhaseConstants> = (0..np)
-            .map(|k| PhaseConstants { density: 800.0 + 150.0 * k as f32, tau: 1e-5 * (1.0 + k as f32), sigma: 1e-3 })
-            .collect();
+        let phases = drifting_phases(np);
         let density: Vec<f32> = phases.iter().map(|c| c.density).collect();
         let m = band.len() * np;
         let (ex, ey, ez) = (field(&mut rng, 1e5, m), field(&mut rng, 1e5, m), field(&mut rng, 1e5, m));
@@ -727,6 +714,23 @@ fn the_fused_drift_is_the_sequence_of_passes_bit_for_bit() {
         }
     }
     assert_eq!(checked, 48);
+}
+
+/// Outer fractions of `np` phases summing to alpha_f < 1 (inner fluid),
+/// alpha_f below the 0.01 guard on about a tenth of the `n` particles:
+/// `(alpha_f, alpha)`.
+fn outer_fractions(n: usize, np: usize, rng: &mut Lcg) -> (Vec<f32>, Vec<Vec<f32>>) {
+    let alpha_f: Vec<f32> = (0..n).map(|_| if rng.next() < 0.1 { 0.005 } else { 0.5 + 0.5 * rng.next() }).collect();
+    let alpha =
+        fractions(n, np, rng).into_iter().map(|a| a.iter().zip(&alpha_f).map(|(a, f)| a * f).collect()).collect();
+    (alpha_f, alpha)
+}
+
+/// `np` phases with their own densities and drift taus.
+fn drifting_phases(np: usize) -> Vec<PhaseConstants> {
+    (0..np)
+        .map(|k| PhaseConstants { density: 800.0 + 150.0 * k as f32, tau: 1e-5 * (1.0 + k as f32), sigma: 1e-3 })
+        .collect()
 }
 
 /// `drift::mixture_velocity` into new vectors: the mass- and
